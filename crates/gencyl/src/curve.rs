@@ -1,0 +1,217 @@
+//! The axis: a cubic Bezier space curve.
+
+use glam::DVec3;
+
+use crate::real::{Real, V3};
+
+/// A cubic Bezier curve in Bernstein form,
+/// `a(u) = (1-u)^3 P0 + 3u(1-u)^2 P1 + 3u^2(1-u) P2 + u^3 P3`, `u in [0, 1]`.
+///
+/// Derivatives come from the hodographs: `a'(u)` is the quadratic Bezier with control points
+/// `3(P1-P0), 3(P2-P1), 3(P3-P2)`, `a''(u)` the line `6(P2-2P1+P0)` to `6(P3-2P2+P1)`, and
+/// `a'''` the constant `6(P3-3P2+3P1-P0)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CubicBezier {
+    /// The control points `P0..P3`.
+    pub points: [DVec3; 4],
+}
+
+impl CubicBezier {
+    /// The curve with control points `P0..P3`.
+    pub fn new(points: [DVec3; 4]) -> Self {
+        CubicBezier { points }
+    }
+
+    /// The same curve with every control point moved by `-origin`.
+    pub fn translated(&self, origin: DVec3) -> Self {
+        CubicBezier { points: self.points.map(|p| p - origin) }
+    }
+
+    /// The control points of `a'` (a quadratic Bezier).
+    pub fn hodograph(&self) -> [DVec3; 3] {
+        let p = &self.points;
+        [3.0 * (p[1] - p[0]), 3.0 * (p[2] - p[1]), 3.0 * (p[3] - p[2])]
+    }
+
+    /// The control points of `a''` (a line).
+    pub fn second_hodograph(&self) -> [DVec3; 2] {
+        let p = &self.points;
+        [6.0 * (p[2] - 2.0 * p[1] + p[0]), 6.0 * (p[3] - 2.0 * p[2] + p[1])]
+    }
+
+    /// The constant `a'''`.
+    pub fn third_derivative(&self) -> DVec3 {
+        let p = &self.points;
+        6.0 * (p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0])
+    }
+
+    /// `a(u)`.
+    pub fn point(&self, u: f64) -> DVec3 {
+        self.point_r(u).value()
+    }
+
+    /// `a'(u)`.
+    pub fn d1(&self, u: f64) -> DVec3 {
+        self.d1_r(u).value()
+    }
+
+    /// `a''(u)`.
+    pub fn d2(&self, u: f64) -> DVec3 {
+        self.d2_r(u).value()
+    }
+
+    /// `a(u)` over any [`Real`].
+    #[inline]
+    pub fn point_r<T: Real>(&self, u: T) -> V3<T> {
+        let s = T::cst(1.0) - u;
+        let (s2, u2) = (s * s, u * u);
+        let w = [s2 * s, (s2 * u).scale(3.0), (s * u2).scale(3.0), u2 * u];
+        combine(&self.points, &w)
+    }
+
+    /// `a'(u)` over any [`Real`].
+    #[inline]
+    pub fn d1_r<T: Real>(&self, u: T) -> V3<T> {
+        let s = T::cst(1.0) - u;
+        let w = [s * s, (s * u).scale(2.0), u * u];
+        combine(&self.hodograph(), &w)
+    }
+
+    /// `a''(u)` over any [`Real`].
+    #[inline]
+    pub fn d2_r<T: Real>(&self, u: T) -> V3<T> {
+        let w = [T::cst(1.0) - u, u];
+        combine(&self.second_hodograph(), &w)
+    }
+
+    /// The largest distance of `P1` and `P2` from the line through `P0` and `P3`, divided by
+    /// `|P3 - P0|` (infinite when `P0 = P3`). The curve lies in the control polygon's hull, so
+    /// this bounds how far the curve strays from a straight line, relative to its length.
+    pub fn relative_deviation_from_chord(&self) -> f64 {
+        let p = &self.points;
+        let chord = p[3] - p[0];
+        let len = chord.length();
+        if len == 0.0 {
+            return f64::INFINITY;
+        }
+        let dir = chord / len;
+        let off = |q: DVec3| {
+            let r = q - p[0];
+            (r - r.dot(dir) * dir).length()
+        };
+        off(p[1]).max(off(p[2])) / len
+    }
+
+    /// Smallest `|a'(u)|` over `[0, 1]`, to within a relative 1e-6 (sampled, then refined
+    /// around the smallest sample by golden-section search on the quartic `|a'|^2`).
+    pub fn min_speed(&self) -> f64 {
+        let speed2 = |u: f64| self.d1(u).length_squared();
+        let n = 64;
+        let (mut best_u, mut best) = (0.0, speed2(0.0));
+        for i in 1..=n {
+            let u = i as f64 / n as f64;
+            let s = speed2(u);
+            if s < best {
+                best = s;
+                best_u = u;
+            }
+        }
+        let (mut lo, mut hi) = ((best_u - 1.0 / n as f64).max(0.0), (best_u + 1.0 / n as f64).min(1.0));
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        for _ in 0..80 {
+            let (m1, m2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+            if speed2(m1) < speed2(m2) {
+                hi = m2;
+            } else {
+                lo = m1;
+            }
+        }
+        best.min(speed2(0.5 * (lo + hi))).sqrt()
+    }
+}
+
+#[inline]
+fn combine<T: Real, const N: usize>(pts: &[DVec3; N], w: &[T; N]) -> V3<T> {
+    let mut acc = V3::new(T::cst(0.0), T::cst(0.0), T::cst(0.0));
+    for (p, &wi) in pts.iter().zip(w) {
+        acc = acc + V3::new(wi.scale(p.x), wi.scale(p.y), wi.scale(p.z));
+    }
+    acc
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::real::Dual;
+
+    fn sample() -> CubicBezier {
+        CubicBezier::new([
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(0.3, 1.0, -0.2),
+            DVec3::new(1.2, 0.8, 0.5),
+            DVec3::new(1.5, -0.4, 0.9),
+        ])
+    }
+
+    /// Power form `a0 + a1 u + a2 u^2 + a3 u^3` (the seed's form), from the Bernstein points.
+    fn power_form(c: &CubicBezier, u: f64) -> DVec3 {
+        let p = c.points;
+        let a1 = 3.0 * (p[1] - p[0]);
+        let a2 = 3.0 * (p[2] - 2.0 * p[1] + p[0]);
+        let a3 = p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0];
+        p[0] + u * (a1 + u * (a2 + u * a3))
+    }
+
+    #[test]
+    fn bernstein_matches_power_form_and_endpoints() {
+        let c = sample();
+        assert_eq!(c.point(0.0), c.points[0], "a(0) must be P0");
+        assert!((c.point(1.0) - c.points[3]).length() < 1e-15, "a(1) must be P3");
+        for i in 0..=10 {
+            let u = i as f64 / 10.0;
+            let e = (c.point(u) - power_form(&c, u)).length();
+            assert!(e < 1e-14, "u={u}: Bernstein and power forms differ by {e}");
+        }
+    }
+
+    /// Derivatives against central finite differences (step 1e-5: truncation ~1e-10,
+    /// rounding ~1e-11) and against automatic differentiation of the position.
+    #[test]
+    fn derivatives_match_finite_differences_and_dual_numbers() {
+        let c = sample();
+        let h = 1e-5;
+        for i in 0..=10 {
+            let u = 0.05 + 0.09 * i as f64;
+            let fd1 = (c.point(u + h) - c.point(u - h)) / (2.0 * h);
+            let fd2 = (c.d1(u + h) - c.d1(u - h)) / (2.0 * h);
+            let fd3 = (c.d2(u + h) - c.d2(u - h)) / (2.0 * h);
+            assert!((fd1 - c.d1(u)).length() < 1e-8, "a' at {u}");
+            assert!((fd2 - c.d2(u)).length() < 1e-8, "a'' at {u}");
+            assert!((fd3 - c.third_derivative()).length() < 1e-8, "a''' at {u}");
+            let ad = c.point_r(Dual::var(u));
+            let ad = DVec3::new(ad.x.d, ad.y.d, ad.z.d);
+            assert!((ad - c.d1(u)).length() < 1e-13, "AD a' at {u}");
+        }
+    }
+
+    #[test]
+    fn deviation_and_min_speed() {
+        let straight = CubicBezier::new([
+            DVec3::ZERO,
+            DVec3::new(0.5, 0.0, 0.0),
+            DVec3::new(2.5, 0.0, 0.0),
+            DVec3::new(3.0, 0.0, 0.0),
+        ]);
+        assert_eq!(straight.relative_deviation_from_chord(), 0.0, "collinear points");
+        assert!(sample().relative_deviation_from_chord() > 0.1, "curved sample");
+        // a'(u) = 3[(1-u)^2 (P1-P0) + 2u(1-u)(P2-P1) + u^2 (P3-P2)], here with a zero at u=1/2.
+        let cusp = CubicBezier::new([
+            DVec3::ZERO,
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+        ]);
+        assert!(cusp.min_speed() < 1e-6, "cusp speed {}", cusp.min_speed());
+        assert!(sample().min_speed() > 0.1, "regular curve");
+    }
+}

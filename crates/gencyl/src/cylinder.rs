@@ -1,0 +1,350 @@
+//! The generalized cylinder: surface, normals, bounds, caps.
+
+use glam::{DVec2, DVec3};
+
+use crate::curve::CubicBezier;
+use crate::frame::{Frame, FrameAt, Framing, frame_r};
+use crate::real::{Dual, Real, V2, V3};
+use crate::section::{CrossSection, Section};
+use crate::sweep::{HairSweep, SweepRule};
+
+/// A ray `origin + t dir`. `dir` need not be unit length; `t` is in units of `dir`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Where the ray starts (`t = 0`).
+    pub origin: DVec3,
+    /// Its direction.
+    pub dir: DVec3,
+}
+
+impl Ray {
+    /// The ray `origin + t dir`.
+    pub fn new(origin: DVec3, dir: DVec3) -> Self {
+        Ray { origin, dir }
+    }
+
+    /// `origin + t dir`.
+    pub fn at(&self, t: f64) -> DVec3 {
+        self.origin + t * self.dir
+    }
+}
+
+/// Which part of a cylinder's boundary a hit is on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Part {
+    /// The swept side surface.
+    Side,
+    /// The planar cap at `u = 0`.
+    StartCap,
+    /// The planar cap at `u = 1`.
+    EndCap,
+}
+
+/// A ray-surface intersection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// The ray parameter: the hit is `origin + t dir`.
+    pub t: f64,
+    /// The axis parameter.
+    pub u: f64,
+    /// The section parameter, in `[0, 2 pi)` (on a cap: the angle of the section point).
+    pub v: f64,
+    /// The hit point `origin + t dir`.
+    pub point: DVec3,
+    /// The unit outward geometric normal.
+    pub normal: DVec3,
+    /// The part hit.
+    pub part: Part,
+}
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    /// Smallest corner.
+    pub min: DVec3,
+    /// Largest corner.
+    pub max: DVec3,
+}
+
+impl Aabb {
+    /// The empty box (`min > max`), the identity of [`Aabb::union`].
+    pub const EMPTY: Aabb = Aabb { min: DVec3::INFINITY, max: DVec3::NEG_INFINITY };
+
+    /// The smallest box holding both.
+    pub fn union(self, o: Aabb) -> Aabb {
+        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+
+    /// The centre.
+    pub fn center(&self) -> DVec3 {
+        0.5 * (self.min + self.max)
+    }
+
+    /// Whether `p` lies in the box.
+    pub fn contains(&self, p: DVec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+
+    /// The range of `t` for which `ray.at(t)` is in the box (slab test), if not empty.
+    pub fn ray_range(&self, ray: &Ray) -> Option<(f64, f64)> {
+        let inv = ray.dir.recip();
+        let (t0, t1) = ((self.min - ray.origin) * inv, (self.max - ray.origin) * inv);
+        // 0 * inf = NaN on an axis-parallel ray through a slab face: treat as inside the slab.
+        let lo = t0.min(t1);
+        let hi = t0.max(t1);
+        let mut tmin = f64::NEG_INFINITY;
+        let mut tmax = f64::INFINITY;
+        for k in 0..3 {
+            if !lo[k].is_nan() {
+                tmin = tmin.max(lo[k]);
+            }
+            if !hi[k].is_nan() {
+                tmax = tmax.min(hi[k]);
+            }
+        }
+        (tmin <= tmax).then_some((tmin, tmax))
+    }
+}
+
+/// Why a cylinder cannot be built.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum GeometryError {
+    /// A control point is NaN or infinite.
+    #[error("control point {0} of the axis is not finite")]
+    NonFiniteAxis(usize),
+    /// All control points coincide.
+    #[error("the axis has zero length (all control points coincide)")]
+    ZeroLengthAxis,
+    /// `a'(u)` vanishes somewhere in `[0, 1]`: a cusp or a doubled-back control polygon.
+    #[error("the axis has a cusp: |a'(u)| drops to {min_speed:.3e} (of {max_speed:.3e}) near u = {at:.4}")]
+    Cusp {
+        /// Smallest speed found.
+        min_speed: f64,
+        /// Largest hodograph control point length, for scale.
+        max_speed: f64,
+        /// Where.
+        at: f64,
+    },
+    /// The normal hint is parallel to a straight axis, or not finite.
+    #[error("normal_hint is parallel to the straight axis (or not finite)")]
+    BadNormalHint,
+    /// The sweep rule is unusable.
+    #[error("{0}")]
+    Sweep(String),
+}
+
+/// A cusp is `min |a'| <= CUSP_TOLERANCE * max |hodograph point|`.
+pub const CUSP_TOLERANCE: f64 = 1e-9;
+
+/// A generalized cylinder (seed section 1): the solid swept by `section` along `axis` under
+/// `sweep`, `Gamma(u, v) = a(u) + c_n n(u) + c_b b(u)` with `c = s(cs(v), u)`, optionally
+/// closed by planar caps at `u = 0` and `u = 1`.
+///
+/// Geometry is stored relative to the axis' first control point, so precision does not depend on
+/// how far the fiber is from the world origin.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
+    pub(crate) axis: CubicBezier,
+    pub(crate) origin: DVec3,
+    pub(crate) framing: Framing,
+    pub(crate) section: C,
+    pub(crate) sweep: S,
+    pub(crate) caps: bool,
+    bounds: Aabb,
+}
+
+impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
+    /// Builds a cylinder, rejecting a non-finite, zero-length or cusped axis, a hint parallel to
+    /// a straight axis, and an invalid sweep rule. `normal_hint` matters only for a straight
+    /// axis (interface.md section 1).
+    pub fn new(
+        axis: CubicBezier,
+        section: C,
+        sweep: S,
+        caps: bool,
+        normal_hint: Option<DVec3>,
+    ) -> Result<Self, GeometryError> {
+        if let Some(i) = axis.points.iter().position(|p| !p.is_finite()) {
+            return Err(GeometryError::NonFiniteAxis(i));
+        }
+        sweep.validate().map_err(GeometryError::Sweep)?;
+        let origin = axis.points[0];
+        let local = axis.translated(origin);
+        let max_speed = local.hodograph().iter().fold(0.0f64, |m, h| m.max(h.length()));
+        if max_speed == 0.0 {
+            return Err(GeometryError::ZeroLengthAxis);
+        }
+        let min_speed = local.min_speed();
+        if min_speed <= CUSP_TOLERANCE * max_speed {
+            let at = (0..=1000)
+                .map(|i| i as f64 / 1000.0)
+                .min_by(|&a, &b| local.d1(a).length().total_cmp(&local.d1(b).length()))
+                .unwrap_or(0.0);
+            return Err(GeometryError::Cusp { min_speed, max_speed, at });
+        }
+        if normal_hint.is_some_and(|h| !h.is_finite()) {
+            return Err(GeometryError::BadNormalHint);
+        }
+        let framing = Framing::for_axis(&local, normal_hint).ok_or(GeometryError::BadNormalHint)?;
+        let r = sweep.max_scale() * section.bounding_radius();
+        let bounds = axis
+            .points
+            .iter()
+            .fold(Aabb::EMPTY, |b, &p| b.union(Aabb { min: p - DVec3::splat(r), max: p + DVec3::splat(r) }));
+        Ok(GeneralizedCylinder { axis: local, origin, framing, section, sweep, caps, bounds })
+    }
+
+    /// The axis in world coordinates.
+    pub fn axis(&self) -> CubicBezier {
+        self.axis.translated(-self.origin)
+    }
+
+    /// The cross section.
+    pub fn section(&self) -> &C {
+        &self.section
+    }
+
+    /// The sweep rule.
+    pub fn sweep(&self) -> &S {
+        &self.sweep
+    }
+
+    /// Whether the end caps are part of the solid's boundary.
+    pub fn has_caps(&self) -> bool {
+        self.caps
+    }
+
+    /// How the frame is defined (Frenet, or fixed for a straight axis).
+    pub fn framing(&self) -> &Framing {
+        &self.framing
+    }
+
+    /// A box holding the whole solid: the control points' box (the curve lies in their hull)
+    /// grown by the largest section radius.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The frame at `u`.
+    pub fn frame(&self, u: f64) -> Frame {
+        FrameAt::new(&self.axis, &self.framing, u).frame
+    }
+
+    /// `Gamma(u, v) = a(u) + c_n(u, v) n(u) + c_b(u, v) b(u)`, `c = s(cs(v), u)`.
+    pub fn surface_point(&self, u: f64, v: f64) -> DVec3 {
+        let f = self.frame(u);
+        let c = self.sweep.apply(u, V2::cst(self.section.point(v))).value();
+        self.origin + self.axis.point(u) + c.x * f.n + c.y * f.b
+    }
+
+    /// The unit outward normal of the side surface,
+    /// `N = orient * (dGamma/dv x dGamma/du) / |...|` (seed 2.4 with errata 2 and 4), where
+    /// `dGamma/du = a' + (dc_n/du) n + c_n n' + (dc_b/du) b + c_b b'` with the Frenet-Serret
+    /// derivatives times the speed, `dGamma/dv = (dc_n/dv) n + (dc_b/dv) b`, and
+    /// `orient = +1` for a counter-clockwise section under an orientation-keeping rule.
+    pub fn normal(&self, u: f64, v: f64) -> DVec3 {
+        let at = FrameAt::new(&self.axis, &self.framing, u);
+        let Frame { t: _, n, b } = at.frame;
+        let [_, dn, db] = at.derivatives();
+        let p = self.section.point(v);
+        let dp = self.section.derivative(v);
+        // c and dc/du: the rule differentiated in u with the section point held fixed.
+        let cu = self.sweep.apply(Dual::var(u), V2::cst(p));
+        // dc/dv: the rule differentiated along the section's tangent.
+        let cv = self.sweep.apply(Dual::cst(u), V2::new(Dual { v: p.x, d: dp.x }, Dual { v: p.y, d: dp.y }));
+        let gu = self.axis.d1(u) + cu.x.d * n + cu.x.v * dn + cu.y.d * b + cu.y.v * db;
+        let gv = cv.x.d * n + cv.y.d * b;
+        let orient = self.section.orientation() * self.sweep.orientation();
+        let nrm = gv.cross(gu) * orient;
+        let len = nrm.length();
+        if len > 0.0 && len.is_finite() {
+            nrm / len
+        } else {
+            // A singular point of the surface (a fold edge): fall back to the radial direction.
+            (c_world(n, b, cu.x.v, cu.y.v)).normalize_or(n)
+        }
+    }
+
+    /// The outward normal of a cap: `-t(0)` or `+t(1)`.
+    pub fn cap_normal(&self, end: Part) -> DVec3 {
+        match end {
+            Part::StartCap => -self.frame(0.0).t,
+            _ => self.frame(1.0).t,
+        }
+    }
+
+    /// `phi(u)` and `w(u)` (seed 2.1-2.2 with errata 1) for the ray `o + w d` in local
+    /// coordinates: the ray meets the normal plane at `u` where
+    /// `w = -a'(u).(o - a(u)) / (a'(u).d)`; the point's plane coordinates are
+    /// `rho = (n.(o + w d - a), b.(o + w d - a))`, and `phi = s^-1(rho, u)`.
+    #[inline]
+    pub(crate) fn phi_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V2<T>, T) {
+        let (e, w) = self.plane_offset_r(o, d, u);
+        let [_, n, b] = frame_r(&self.axis, &self.framing, u);
+        (self.sweep.inverse(u, V2::new(n.dot(e), b.dot(e))), w)
+    }
+
+    /// `(o + w(u) d - a(u), w(u))`: the ray's point in the normal plane at `u`, relative to the
+    /// axis, and its ray parameter.
+    #[inline]
+    pub(crate) fn plane_offset_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V3<T>, T) {
+        let e = V3::cst(o) - self.axis.point_r(u);
+        let d1 = self.axis.d1_r(u);
+        let w = -(d1.dot(e)) / d1.dot_cst(d);
+        (e + V3::cst(d).mul(w), w)
+    }
+}
+
+fn c_world(n: DVec3, b: DVec3, cn: f64, cb: f64) -> DVec3 {
+    cn * n + cb * b
+}
+
+/// Plain data for a hair fiber: what a `[[cylinder]]` table holds (interface.md section 2).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FiberSpec {
+    /// Bezier control points `P0..P3`.
+    pub bezier: [DVec3; 4],
+    /// `[A0, A1]`.
+    pub major_radius: [f64; 2],
+    /// `[B0, B1]`.
+    pub minor_radius: [f64; 2],
+    /// `[theta0, theta1]`, radians.
+    pub rotation: [f64; 2],
+    /// Whether the caps are closed.
+    pub caps: bool,
+    /// Frame hint for straight axes.
+    pub normal_hint: Option<DVec3>,
+    /// The section (default: the unit circle).
+    pub section: Section,
+}
+
+impl FiberSpec {
+    /// A capped round fiber of constant radius `r` along `bezier`.
+    pub fn round(bezier: [DVec3; 4], r: f64) -> Self {
+        FiberSpec {
+            bezier,
+            major_radius: [r, r],
+            minor_radius: [r, r],
+            rotation: [0.0, 0.0],
+            caps: true,
+            normal_hint: None,
+            section: Section::default(),
+        }
+    }
+
+    /// Builds the cylinder.
+    pub fn build(&self) -> Result<GeneralizedCylinder, GeometryError> {
+        GeneralizedCylinder::new(
+            CubicBezier::new(self.bezier),
+            self.section.clone(),
+            HairSweep { major: self.major_radius, minor: self.minor_radius, rotation: self.rotation },
+            self.caps,
+            self.normal_hint,
+        )
+    }
+}
+
+/// `p` as a `DVec2` (helper for section-plane points).
+pub(crate) fn v2(p: V2<f64>) -> DVec2 {
+    DVec2::new(p.x, p.y)
+}

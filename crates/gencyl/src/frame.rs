@@ -1,0 +1,264 @@
+//! The moving frame along the axis: Frenet where the axis bends, a fixed frame where the whole
+//! segment is straight (interface.md section 1).
+
+use glam::DVec3;
+
+use crate::curve::CubicBezier;
+use crate::real::{Real, V3};
+
+/// A segment whose control points stray from the chord by at most this fraction of the chord
+/// length is straight and gets a fixed frame.
+///
+/// Why this value: the Frenet binormal is `a' x a''`, and `a''` carries a rounding error of about
+/// `1e-16` of the control points' magnitude (they are stored relative to `P0`, so of the chord
+/// length `L`). A deviation `delta L` gives `|a''| ~ delta L`, so the binormal's direction is off
+/// by about `1e-16 / delta`: at `delta = 1e-9` that is `1e-7` radians, which moves an elliptical
+/// section's surface by `1e-7 (A - B)`. Below the threshold the curvature is not resolvable in
+/// double precision relative to the segment and the frame would be noise.
+pub const STRAIGHT_TOLERANCE: f64 = 1e-9;
+
+/// An orthonormal, right-handed frame (`n x b = t`) at one point of the axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    /// Unit tangent `t = a'/|a'|`.
+    pub t: DVec3,
+    /// Unit normal `n = b x t`.
+    pub n: DVec3,
+    /// Unit binormal `b = (t x a'')/|t x a''|`.
+    pub b: DVec3,
+}
+
+/// How a segment's frame is defined.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Framing {
+    /// The Frenet frame of the curve.
+    Frenet,
+    /// A constant frame (a straight segment, whose Frenet frame is undefined).
+    Fixed(Frame),
+}
+
+impl Framing {
+    /// The framing interface.md prescribes: `Fixed` when the segment is straight to within
+    /// [`STRAIGHT_TOLERANCE`], with `n` the unit vector orthogonal to `t` closest to `hint`
+    /// (default: the world axis `e_k` with the smallest `|t_k|`, lowest `k` on ties).
+    ///
+    /// Returns `None` when the hint is (nearly) parallel to the tangent.
+    pub fn for_axis(axis: &CubicBezier, hint: Option<DVec3>) -> Option<Framing> {
+        if axis.relative_deviation_from_chord() > STRAIGHT_TOLERANCE {
+            return Some(Framing::Frenet);
+        }
+        let t = (axis.points[3] - axis.points[0]).normalize();
+        let hint = hint.unwrap_or_else(|| {
+            let a = t.abs();
+            if a.x <= a.y && a.x <= a.z {
+                DVec3::X
+            } else if a.y <= a.z {
+                DVec3::Y
+            } else {
+                DVec3::Z
+            }
+        });
+        let h = hint.normalize_or_zero();
+        let perp = h - h.dot(t) * t;
+        // |perp| = sin(angle between hint and t); below 1e-6 the choice of n is ill-conditioned.
+        if perp.length() < 1e-6 {
+            return None;
+        }
+        let n = perp.normalize();
+        Some(Framing::Fixed(Frame { t, n, b: t.cross(n) }))
+    }
+}
+
+/// The frame `(t, n, b)` at `u` over any [`Real`].
+///
+/// Frenet: `t = a'/|a'|`, `b = (a' x a'')/|a' x a''|`, `n = b x t`. Where `a' x a''` vanishes
+/// at an isolated point (an inflection), the frame is the limit from the right (from the left
+/// at `u = 1`); for point-symmetric sections both limits give the same surface.
+#[inline]
+pub fn frame_r<T: Real>(axis: &CubicBezier, framing: &Framing, u: T) -> [V3<T>; 3] {
+    match framing {
+        Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
+        Framing::Frenet => {
+            let (mut d1, mut d2) = (axis.d1_r(u), axis.d2_r(u));
+            let mut bt = d1.cross(d2);
+            let tiny = 1e-14 * (d1.norm2().value() * d2.norm2().value()).sqrt();
+            if !(bt.norm2().value().sqrt() > tiny) {
+                let step = if u.value() + 1e-7 <= 1.0 { 1e-7 } else { -1e-7 };
+                let us = u + T::cst(step);
+                d1 = axis.d1_r(us);
+                d2 = axis.d2_r(us);
+                bt = d1.cross(d2);
+            }
+            let t = d1.div(d1.norm2().sqrt());
+            let b = bt.div(bt.norm2().sqrt());
+            [t, b.cross(t), b]
+        }
+    }
+}
+
+/// The frame at `u` with its rates of change, for normals and tests.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameAt {
+    /// The frame.
+    pub frame: Frame,
+    /// The speed `|a'(u)|`.
+    pub speed: f64,
+    /// The curvature `kappa = |a' x a''| / |a'|^3` (0 for a fixed frame).
+    pub curvature: f64,
+    /// The torsion `tau = (a' x a'') . a''' / |a' x a''|^2` (0 for a fixed frame).
+    pub torsion: f64,
+}
+
+impl FrameAt {
+    /// Evaluates the frame, curvature and torsion at `u`.
+    pub fn new(axis: &CubicBezier, framing: &Framing, u: f64) -> Self {
+        let [t, n, b] = frame_r(axis, framing, u);
+        let frame = Frame { t: t.value(), n: n.value(), b: b.value() };
+        let d1 = axis.d1(u);
+        let speed = d1.length();
+        match framing {
+            Framing::Fixed(_) => FrameAt { frame, speed, curvature: 0.0, torsion: 0.0 },
+            Framing::Frenet => {
+                let c = d1.cross(axis.d2(u));
+                let c2 = c.length_squared();
+                let torsion = if c2 > 0.0 { c.dot(axis.third_derivative()) / c2 } else { 0.0 };
+                FrameAt { frame, speed, curvature: c2.sqrt() / (speed * speed * speed), torsion }
+            }
+        }
+    }
+
+    /// `(t'(u), n'(u), b'(u))` by the Frenet-Serret formulas with respect to `u`
+    /// (seed 2.4, corrected by errata 2: the arc-length formulas times the speed `|a'(u)|`):
+    /// `t' = |a'| kappa n`, `n' = |a'| (-kappa t + tau b)`, `b' = -|a'| tau n`.
+    pub fn derivatives(&self) -> [DVec3; 3] {
+        let (s, k, tau) = (self.speed, self.curvature, self.torsion);
+        let Frame { t, n, b } = self.frame;
+        [s * k * n, s * (-k * t + tau * b), -s * tau * n]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn helix_like() -> CubicBezier {
+        CubicBezier::new([
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.2, 0.3),
+            DVec3::new(1.3, 1.1, 0.9),
+            DVec3::new(0.4, 1.6, 1.8),
+        ])
+    }
+
+    #[test]
+    fn frenet_frame_is_orthonormal_and_right_handed() {
+        let c = helix_like();
+        for i in 0..=20 {
+            let f = FrameAt::new(&c, &Framing::Frenet, i as f64 / 20.0).frame;
+            for (name, v) in [("t", f.t), ("n", f.n), ("b", f.b)] {
+                assert!((v.length() - 1.0).abs() < 1e-14, "{name} not unit at {i}");
+            }
+            assert!(f.t.dot(f.n).abs() < 1e-14 && f.t.dot(f.b).abs() < 1e-14, "orthogonality");
+            assert!((f.n.cross(f.b) - f.t).length() < 1e-14, "n x b = t");
+            // n points toward the centre of curvature: a'' has a non-negative n component.
+            assert!(c.d2(i as f64 / 20.0).dot(f.n) >= 0.0, "n toward the bend");
+        }
+    }
+
+    /// Errata 2: the frame derivatives with the speed factor equal finite differences of the
+    /// frame; without the factor they would be off by `|a'(u)|` (here between about 1 and 3).
+    #[test]
+    fn frame_derivatives_match_finite_differences() {
+        let c = helix_like();
+        let h = 1e-6;
+        for i in 1..20 {
+            let u = i as f64 / 20.0;
+            let at = FrameAt::new(&c, &Framing::Frenet, u);
+            let (p, m) = (
+                FrameAt::new(&c, &Framing::Frenet, u + h).frame,
+                FrameAt::new(&c, &Framing::Frenet, u - h).frame,
+            );
+            let fd = [(p.t - m.t) / (2.0 * h), (p.n - m.n) / (2.0 * h), (p.b - m.b) / (2.0 * h)];
+            let an = at.derivatives();
+            for k in 0..3 {
+                let scale = an[k].length().max(1.0);
+                assert!(
+                    (fd[k] - an[k]).length() < 1e-7 * scale,
+                    "u={u} component {k}: fd {:?} formula {:?}",
+                    fd[k],
+                    an[k]
+                );
+            }
+            assert!((at.speed - 1.0).abs() > 0.05, "test needs |a'| != 1 to test errata 2");
+        }
+    }
+
+    #[test]
+    fn curvature_and_torsion_of_the_twisted_cubic() {
+        // a(u) = (u, u^2, u^3) in Bernstein form; textbook values
+        // kappa = 2 sqrt(9u^4 + 9u^2 + 1) / (1 + 4u^2 + 9u^4)^(3/2), tau = 3 / (9u^4 + 9u^2 + 1).
+        let c = CubicBezier::new([
+            DVec3::ZERO,
+            DVec3::new(1.0 / 3.0, 0.0, 0.0),
+            DVec3::new(2.0 / 3.0, 1.0 / 3.0, 0.0),
+            DVec3::new(1.0, 1.0, 1.0),
+        ]);
+        for i in 0..=10 {
+            let u = i as f64 / 10.0;
+            let f = FrameAt::new(&c, &Framing::Frenet, u);
+            let g = 9.0 * u.powi(4) + 9.0 * u * u + 1.0;
+            let kappa = 2.0 * g.sqrt() / (1.0 + 4.0 * u * u + 9.0 * u.powi(4)).powf(1.5);
+            assert!((f.curvature - kappa).abs() < 1e-13, "kappa at {u}: {} vs {kappa}", f.curvature);
+            assert!((f.torsion - 3.0 / g).abs() < 1e-13, "tau at {u}: {} vs {}", f.torsion, 3.0 / g);
+        }
+        // A planar curve has no torsion.
+        let p = CubicBezier::new([DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::new(3.0, 2.0, 0.0)]);
+        assert_eq!(FrameAt::new(&p, &Framing::Frenet, 0.4).torsion, 0.0, "planar torsion");
+    }
+
+    #[test]
+    fn straight_segments_get_the_hinted_or_default_frame() {
+        let s = CubicBezier::new([
+            DVec3::ZERO,
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(3.0, 0.0, 0.0),
+        ]);
+        let Some(Framing::Fixed(f)) = Framing::for_axis(&s, None) else {
+            panic!("straight axis must get a fixed frame");
+        };
+        // t = e_x; smallest |t_k| ties between y and z: lowest k wins, so n = e_y, b = e_z.
+        assert_eq!((f.t, f.n, f.b), (DVec3::X, DVec3::Y, DVec3::Z), "default frame");
+        let Some(Framing::Fixed(f)) = Framing::for_axis(&s, Some(DVec3::new(0.0, 1.0, 1.0)))
+        else {
+            panic!("hinted frame");
+        };
+        let r = 0.5f64.sqrt();
+        assert!((f.n - DVec3::new(0.0, r, r)).length() < 1e-15, "n closest to hint");
+        assert_eq!(Framing::for_axis(&s, Some(DVec3::X)), None, "hint parallel to t");
+        // Nearly straight within tolerance is straight; just above it is Frenet.
+        let mut near = s;
+        near.points[1].y = 0.5e-9 * 3.0;
+        assert!(matches!(Framing::for_axis(&near, None), Some(Framing::Fixed(_))), "within tol");
+        near.points[1].y = 2e-9 * 3.0;
+        assert_eq!(Framing::for_axis(&near, None), Some(Framing::Frenet), "above tol");
+        // Just above the tolerance the Frenet frame is still well defined: b is e_z to 1e-6.
+        let f = FrameAt::new(&near, &Framing::Frenet, 0.3).frame;
+        assert!((f.b.abs() - DVec3::Z).length() < 1e-6, "nearly straight frame {f:?}");
+    }
+
+    #[test]
+    fn inflection_point_takes_the_limit() {
+        // Planar S curve with an inflection at u = 1/2 (a'' = 0 there by symmetry).
+        let c = CubicBezier::new([
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(2.0, -1.0, 0.0),
+            DVec3::new(3.0, 0.0, 0.0),
+        ]);
+        let at = FrameAt::new(&c, &Framing::Frenet, 0.5).frame;
+        let right = FrameAt::new(&c, &Framing::Frenet, 0.5 + 1e-4).frame;
+        assert!(at.b.is_finite() && at.n.is_finite(), "frame finite at the inflection");
+        assert!((at.b - right.b).length() < 1e-9, "limit from the right: {at:?} vs {right:?}");
+    }
+}

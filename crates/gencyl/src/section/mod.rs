@@ -1,0 +1,92 @@
+//! Closed planar cross sections `cs(v)`, `v in [0, 2 pi)`, in the `(n, b)` plane.
+
+mod bezier_loop;
+mod circle;
+
+pub use bezier_loop::{BezierLoop, ProfileError};
+pub use circle::UnitCircle;
+pub(crate) use circle::angle;
+
+use arrayvec::ArrayVec;
+use glam::DVec2;
+
+/// Most crossings of a line with a section that [`CrossSection::intersect_line`] reports.
+pub const MAX_LINE_CROSSINGS: usize = 24;
+
+/// Crossings of a line with a section: `(s, v)` with `p + s dir = cs(v)`.
+pub type LineCrossings = ArrayVec<(f64, f64), MAX_LINE_CROSSINGS>;
+
+/// A closed planar curve `cs(v)`, `v in [0, 2 pi)`, bounding a region of the section plane.
+pub trait CrossSection {
+    /// `cs(v)`.
+    fn point(&self, v: f64) -> DVec2;
+    /// `d cs / d v`.
+    fn derivative(&self, v: f64) -> DVec2;
+    /// Whether `p` lies inside the closed region (the boundary counts as inside).
+    fn contains(&self, p: DVec2) -> bool;
+    /// `max |cs(v)|`: the section lies in the disc of this radius about the origin.
+    fn bounding_radius(&self) -> f64;
+    /// Every crossing of the line `p + s dir` with the curve.
+    fn intersect_line(&self, p: DVec2, dir: DVec2) -> LineCrossings;
+    /// Parameters `0 = v_0 < v_1 < ... < v_k = 2 pi` splitting the curve into pieces that are
+    /// monotone in both coordinates and free of inflections, so each piece lies in the box of
+    /// its end points and in the triangle of its end points and end tangents (seed 2.3).
+    fn monotone_breaks(&self) -> Vec<f64>;
+    /// `+1` when the curve runs counter-clockwise, `-1` when clockwise (errata 4).
+    fn orientation(&self) -> f64;
+    /// Whether this is the unit circle `(cos v, sin v)`, which admits the radial fast path.
+    fn is_unit_circle(&self) -> bool {
+        false
+    }
+}
+
+/// The cross sections a scene can name: the circle (hair) or a Bezier loop.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Section {
+    /// The unit circle.
+    Circle(UnitCircle),
+    /// A closed piecewise-cubic profile.
+    Loop(BezierLoop),
+}
+
+impl Default for Section {
+    fn default() -> Self {
+        Section::Circle(UnitCircle)
+    }
+}
+
+macro_rules! forward {
+    ($self:ident, $s:ident => $e:expr) => {
+        match $self {
+            Section::Circle($s) => $e,
+            Section::Loop($s) => $e,
+        }
+    };
+}
+
+impl CrossSection for Section {
+    fn point(&self, v: f64) -> DVec2 {
+        forward!(self, s => s.point(v))
+    }
+    fn derivative(&self, v: f64) -> DVec2 {
+        forward!(self, s => s.derivative(v))
+    }
+    fn contains(&self, p: DVec2) -> bool {
+        forward!(self, s => s.contains(p))
+    }
+    fn bounding_radius(&self) -> f64 {
+        forward!(self, s => s.bounding_radius())
+    }
+    fn intersect_line(&self, p: DVec2, dir: DVec2) -> LineCrossings {
+        forward!(self, s => s.intersect_line(p, dir))
+    }
+    fn monotone_breaks(&self) -> Vec<f64> {
+        forward!(self, s => s.monotone_breaks())
+    }
+    fn orientation(&self) -> f64 {
+        forward!(self, s => s.orientation())
+    }
+    fn is_unit_circle(&self) -> bool {
+        forward!(self, s => s.is_unit_circle())
+    }
+}
