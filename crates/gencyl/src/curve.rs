@@ -24,19 +24,28 @@ impl CubicBezier {
 
     /// The same curve with every control point moved by `-origin`.
     pub fn translated(&self, origin: DVec3) -> Self {
-        CubicBezier { points: self.points.map(|p| p - origin) }
+        CubicBezier {
+            points: self.points.map(|p| p - origin),
+        }
     }
 
     /// The control points of `a'` (a quadratic Bezier).
     pub fn hodograph(&self) -> [DVec3; 3] {
         let p = &self.points;
-        [3.0 * (p[1] - p[0]), 3.0 * (p[2] - p[1]), 3.0 * (p[3] - p[2])]
+        [
+            3.0 * (p[1] - p[0]),
+            3.0 * (p[2] - p[1]),
+            3.0 * (p[3] - p[2]),
+        ]
     }
 
     /// The control points of `a''` (a line).
     pub fn second_hodograph(&self) -> [DVec3; 2] {
         let p = &self.points;
-        [6.0 * (p[2] - 2.0 * p[1] + p[0]), 6.0 * (p[3] - 2.0 * p[2] + p[1])]
+        [
+            6.0 * (p[2] - 2.0 * p[1] + p[0]),
+            6.0 * (p[3] - 2.0 * p[2] + p[1]),
+        ]
     }
 
     /// The constant `a'''`.
@@ -116,7 +125,10 @@ impl CubicBezier {
                 best_u = u;
             }
         }
-        let (mut lo, mut hi) = ((best_u - 1.0 / n as f64).max(0.0), (best_u + 1.0 / n as f64).min(1.0));
+        let (mut lo, mut hi) = (
+            (best_u - 1.0 / n as f64).max(0.0),
+            (best_u + 1.0 / n as f64).min(1.0),
+        );
         let g = 0.5 * (5f64.sqrt() - 1.0);
         for _ in 0..80 {
             let (m1, m2) = (hi - g * (hi - lo), lo + g * (hi - lo));
@@ -166,7 +178,10 @@ mod tests {
     fn bernstein_matches_power_form_and_endpoints() {
         let c = sample();
         assert_eq!(c.point(0.0), c.points[0], "a(0) must be P0");
-        assert!((c.point(1.0) - c.points[3]).length() < 1e-15, "a(1) must be P3");
+        assert!(
+            (c.point(1.0) - c.points[3]).length() < 1e-15,
+            "a(1) must be P3"
+        );
         for i in 0..=10 {
             let u = i as f64 / 10.0;
             let e = (c.point(u) - power_form(&c, u)).length();
@@ -202,8 +217,15 @@ mod tests {
             DVec3::new(2.5, 0.0, 0.0),
             DVec3::new(3.0, 0.0, 0.0),
         ]);
-        assert_eq!(straight.relative_deviation_from_chord(), 0.0, "collinear points");
-        assert!(sample().relative_deviation_from_chord() > 0.1, "curved sample");
+        assert_eq!(
+            straight.relative_deviation_from_chord(),
+            0.0,
+            "collinear points"
+        );
+        assert!(
+            sample().relative_deviation_from_chord() > 0.1,
+            "curved sample"
+        );
         // a'(u) = 3[(1-u)^2 (P1-P0) + 2u(1-u)(P2-P1) + u^2 (P3-P2)], here with a zero at u=1/2.
         let cusp = CubicBezier::new([
             DVec3::ZERO,

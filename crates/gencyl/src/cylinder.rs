@@ -68,11 +68,17 @@ pub struct Aabb {
 
 impl Aabb {
     /// The empty box (`min > max`), the identity of [`Aabb::union`].
-    pub const EMPTY: Aabb = Aabb { min: DVec3::INFINITY, max: DVec3::NEG_INFINITY };
+    pub const EMPTY: Aabb = Aabb {
+        min: DVec3::INFINITY,
+        max: DVec3::NEG_INFINITY,
+    };
 
     /// The smallest box holding both.
     pub fn union(self, o: Aabb) -> Aabb {
-        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
+        Aabb {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
     }
 
     /// The centre.
@@ -116,7 +122,9 @@ pub enum GeometryError {
     #[error("the axis has zero length (all control points coincide)")]
     ZeroLengthAxis,
     /// `a'(u)` vanishes somewhere in `[0, 1]`: a cusp or a doubled-back control polygon.
-    #[error("the axis has a cusp: |a'(u)| drops to {min_speed:.3e} (of {max_speed:.3e}) near u = {at:.4}")]
+    #[error(
+        "the axis has a cusp: |a'(u)| drops to {min_speed:.3e} (of {max_speed:.3e}) near u = {at:.4}"
+    )]
     Cusp {
         /// Smallest speed found.
         min_speed: f64,
@@ -149,7 +157,8 @@ pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
     pub(crate) framing: Framing,
     pub(crate) section: C,
     pub(crate) sweep: S,
-    pub(crate) caps: bool,
+    /// Whether the caps at `u = 0` and `u = 1` close the solid.
+    pub(crate) caps: [bool; 2],
     bounds: Aabb,
 }
 
@@ -170,7 +179,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         sweep.validate().map_err(GeometryError::Sweep)?;
         let origin = axis.points[0];
         let local = axis.translated(origin);
-        let max_speed = local.hodograph().iter().fold(0.0f64, |m, h| m.max(h.length()));
+        let max_speed = local
+            .hodograph()
+            .iter()
+            .fold(0.0f64, |m, h| m.max(h.length()));
         if max_speed == 0.0 {
             return Err(GeometryError::ZeroLengthAxis);
         }
@@ -180,18 +192,33 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 .map(|i| i as f64 / 1000.0)
                 .min_by(|&a, &b| local.d1(a).length().total_cmp(&local.d1(b).length()))
                 .unwrap_or(0.0);
-            return Err(GeometryError::Cusp { min_speed, max_speed, at });
+            return Err(GeometryError::Cusp {
+                min_speed,
+                max_speed,
+                at,
+            });
         }
         if normal_hint.is_some_and(|h| !h.is_finite()) {
             return Err(GeometryError::BadNormalHint);
         }
         let framing = Framing::for_axis(&local, normal_hint).ok_or(GeometryError::BadNormalHint)?;
-        let r = sweep.max_scale() * section.bounding_radius();
-        let bounds = axis
-            .points
-            .iter()
-            .fold(Aabb::EMPTY, |b, &p| b.union(Aabb { min: p - DVec3::splat(r), max: p + DVec3::splat(r) }));
-        Ok(GeneralizedCylinder { axis: local, origin, framing, section, sweep, caps, bounds })
+        let [l0, l1] = sweep.scale_bound();
+        let r = l0.max(l1) * section.bounding_radius();
+        let bounds = axis.points.iter().fold(Aabb::EMPTY, |b, &p| {
+            b.union(Aabb {
+                min: p - DVec3::splat(r),
+                max: p + DVec3::splat(r),
+            })
+        });
+        Ok(GeneralizedCylinder {
+            axis: local,
+            origin,
+            framing,
+            section,
+            sweep,
+            caps: [caps; 2],
+            bounds,
+        })
     }
 
     /// The axis in world coordinates.
@@ -209,9 +236,16 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         &self.sweep
     }
 
-    /// Whether the end caps are part of the solid's boundary.
-    pub fn has_caps(&self) -> bool {
+    /// Whether the caps at `u = 0` and `u = 1` are part of the boundary.
+    pub fn caps(&self) -> [bool; 2] {
         self.caps
+    }
+
+    /// Closes or opens each end separately: a strand's inner joints have no caps, its root and
+    /// tip do.
+    pub fn with_caps(mut self, start: bool, end: bool) -> Self {
+        self.caps = [start, end];
+        self
     }
 
     /// How the frame is defined (Frenet, or fixed for a straight axis).
@@ -251,7 +285,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         // c and dc/du: the rule differentiated in u with the section point held fixed.
         let cu = self.sweep.apply(Dual::var(u), V2::cst(p));
         // dc/dv: the rule differentiated along the section's tangent.
-        let cv = self.sweep.apply(Dual::cst(u), V2::new(Dual { v: p.x, d: dp.x }, Dual { v: p.y, d: dp.y }));
+        let cv = self.sweep.apply(
+            Dual::cst(u),
+            V2::new(Dual { v: p.x, d: dp.x }, Dual { v: p.y, d: dp.y }),
+        );
         let gu = self.axis.d1(u) + cu.x.d * n + cu.x.v * dn + cu.y.d * b + cu.y.v * db;
         let gv = cv.x.d * n + cv.y.d * b;
         let orient = self.section.orientation() * self.sweep.orientation();
@@ -279,19 +316,43 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// `rho = (n.(o + w d - a), b.(o + w d - a))`, and `phi = s^-1(rho, u)`.
     #[inline]
     pub(crate) fn phi_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V2<T>, T) {
-        let (e, w) = self.plane_offset_r(o, d, u);
-        let [_, n, b] = frame_r(&self.axis, &self.framing, u);
-        (self.sweep.inverse(u, V2::new(n.dot(e), b.dot(e))), w)
+        let (qphi, q) = self.scaled_phi_r(o, d, u);
+        (V2::new(qphi.x / q, qphi.y / q), self.plane_w_r(o, d, u))
     }
 
-    /// `(o + w(u) d - a(u), w(u))`: the ray's point in the normal plane at `u`, relative to the
-    /// axis, and its ray parameter.
+    /// `w(u) = a'(u).(a(u) - o) / (a'(u).d)`.
     #[inline]
-    pub(crate) fn plane_offset_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V3<T>, T) {
+    pub(crate) fn plane_w_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> T {
+        let d1 = self.axis.d1_r(u);
+        d1.dot(self.axis.point_r(u) - V3::cst(o)) / d1.dot_cst(d)
+    }
+
+    /// `(V, q)` with `q = a'.d` and `V = q (o - a) - (a'.(o - a)) d = q (o + w d - a)`: the
+    /// in-plane offset times `q`, free of the pole at `q = 0` (a polynomial of degree 5 in `u`).
+    /// `a'.V = 0`, so `V` lies in the normal plane.
+    #[inline]
+    ///
+    /// `V` does not change when `o` moves along the ray, so `o` is first moved to the ray's point
+    /// in the normal plane at `u`'s representative value: `o - a(u)` is then small, and so is the
+    /// cancellation in `q e - m d` (for intervals: the dependency that would widen enclosures by
+    /// the ratio of `|o - a|` to the fiber radius).
+    pub(crate) fn scaled_offset_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V3<T>, T) {
+        let shift = self.plane_w_r(o, d, u.value());
+        let o = if shift.is_finite() { o + shift * d } else { o };
         let e = V3::cst(o) - self.axis.point_r(u);
         let d1 = self.axis.d1_r(u);
-        let w = -(d1.dot(e)) / d1.dot_cst(d);
-        (e + V3::cst(d).mul(w), w)
+        let q = d1.dot_cst(d);
+        let m = d1.dot(e);
+        (e.mul(q) - V3::cst(d).mul(m), q)
+    }
+
+    /// `(q phi, q)`: `phi(u)` times `q(u) = a'(u).d`, from `q rho = (n.V, b.V)` and the rule's
+    /// linearity, `q phi = s^-1(q rho, u)`; finite through the poles of `phi`.
+    #[inline]
+    pub(crate) fn scaled_phi_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V2<T>, T) {
+        let (v, q) = self.scaled_offset_r(o, d, u);
+        let [_, n, b] = frame_r(&self.axis, &self.framing, u);
+        (self.sweep.inverse(u, V2::new(n.dot(v), b.dot(v))), q)
     }
 }
 
@@ -337,7 +398,11 @@ impl FiberSpec {
         GeneralizedCylinder::new(
             CubicBezier::new(self.bezier),
             self.section.clone(),
-            HairSweep { major: self.major_radius, minor: self.minor_radius, rotation: self.rotation },
+            HairSweep {
+                major: self.major_radius,
+                minor: self.minor_radius,
+                rotation: self.rotation,
+            },
             self.caps,
             self.normal_hint,
         )

@@ -65,7 +65,11 @@ impl Framing {
             return None;
         }
         let n = perp.normalize();
-        Some(Framing::Fixed(Frame { t, n, b: t.cross(n) }))
+        Some(Framing::Fixed(Frame {
+            t,
+            n,
+            b: t.cross(n),
+        }))
     }
 }
 
@@ -113,16 +117,34 @@ impl FrameAt {
     /// Evaluates the frame, curvature and torsion at `u`.
     pub fn new(axis: &CubicBezier, framing: &Framing, u: f64) -> Self {
         let [t, n, b] = frame_r(axis, framing, u);
-        let frame = Frame { t: t.value(), n: n.value(), b: b.value() };
+        let frame = Frame {
+            t: t.value(),
+            n: n.value(),
+            b: b.value(),
+        };
         let d1 = axis.d1(u);
         let speed = d1.length();
         match framing {
-            Framing::Fixed(_) => FrameAt { frame, speed, curvature: 0.0, torsion: 0.0 },
+            Framing::Fixed(_) => FrameAt {
+                frame,
+                speed,
+                curvature: 0.0,
+                torsion: 0.0,
+            },
             Framing::Frenet => {
                 let c = d1.cross(axis.d2(u));
                 let c2 = c.length_squared();
-                let torsion = if c2 > 0.0 { c.dot(axis.third_derivative()) / c2 } else { 0.0 };
-                FrameAt { frame, speed, curvature: c2.sqrt() / (speed * speed * speed), torsion }
+                let torsion = if c2 > 0.0 {
+                    c.dot(axis.third_derivative()) / c2
+                } else {
+                    0.0
+                };
+                FrameAt {
+                    frame,
+                    speed,
+                    curvature: c2.sqrt() / (speed * speed * speed),
+                    torsion,
+                }
             }
         }
     }
@@ -158,7 +180,10 @@ mod tests {
             for (name, v) in [("t", f.t), ("n", f.n), ("b", f.b)] {
                 assert!((v.length() - 1.0).abs() < 1e-14, "{name} not unit at {i}");
             }
-            assert!(f.t.dot(f.n).abs() < 1e-14 && f.t.dot(f.b).abs() < 1e-14, "orthogonality");
+            assert!(
+                f.t.dot(f.n).abs() < 1e-14 && f.t.dot(f.b).abs() < 1e-14,
+                "orthogonality"
+            );
             assert!((f.n.cross(f.b) - f.t).length() < 1e-14, "n x b = t");
             // n points toward the centre of curvature: a'' has a non-negative n component.
             assert!(c.d2(i as f64 / 20.0).dot(f.n) >= 0.0, "n toward the bend");
@@ -178,7 +203,11 @@ mod tests {
                 FrameAt::new(&c, &Framing::Frenet, u + h).frame,
                 FrameAt::new(&c, &Framing::Frenet, u - h).frame,
             );
-            let fd = [(p.t - m.t) / (2.0 * h), (p.n - m.n) / (2.0 * h), (p.b - m.b) / (2.0 * h)];
+            let fd = [
+                (p.t - m.t) / (2.0 * h),
+                (p.n - m.n) / (2.0 * h),
+                (p.b - m.b) / (2.0 * h),
+            ];
             let an = at.derivatives();
             for k in 0..3 {
                 let scale = an[k].length().max(1.0);
@@ -189,7 +218,10 @@ mod tests {
                     an[k]
                 );
             }
-            assert!((at.speed - 1.0).abs() > 0.05, "test needs |a'| != 1 to test errata 2");
+            assert!(
+                (at.speed - 1.0).abs() > 0.05,
+                "test needs |a'| != 1 to test errata 2"
+            );
         }
     }
 
@@ -208,12 +240,30 @@ mod tests {
             let f = FrameAt::new(&c, &Framing::Frenet, u);
             let g = 9.0 * u.powi(4) + 9.0 * u * u + 1.0;
             let kappa = 2.0 * g.sqrt() / (1.0 + 4.0 * u * u + 9.0 * u.powi(4)).powf(1.5);
-            assert!((f.curvature - kappa).abs() < 1e-13, "kappa at {u}: {} vs {kappa}", f.curvature);
-            assert!((f.torsion - 3.0 / g).abs() < 1e-13, "tau at {u}: {} vs {}", f.torsion, 3.0 / g);
+            assert!(
+                (f.curvature - kappa).abs() < 1e-13,
+                "kappa at {u}: {} vs {kappa}",
+                f.curvature
+            );
+            assert!(
+                (f.torsion - 3.0 / g).abs() < 1e-13,
+                "tau at {u}: {} vs {}",
+                f.torsion,
+                3.0 / g
+            );
         }
         // A planar curve has no torsion.
-        let p = CubicBezier::new([DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::new(3.0, 2.0, 0.0)]);
-        assert_eq!(FrameAt::new(&p, &Framing::Frenet, 0.4).torsion, 0.0, "planar torsion");
+        let p = CubicBezier::new([
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(3.0, 2.0, 0.0),
+        ]);
+        assert_eq!(
+            FrameAt::new(&p, &Framing::Frenet, 0.4).torsion,
+            0.0,
+            "planar torsion"
+        );
     }
 
     #[test]
@@ -228,23 +278,43 @@ mod tests {
             panic!("straight axis must get a fixed frame");
         };
         // t = e_x; smallest |t_k| ties between y and z: lowest k wins, so n = e_y, b = e_z.
-        assert_eq!((f.t, f.n, f.b), (DVec3::X, DVec3::Y, DVec3::Z), "default frame");
-        let Some(Framing::Fixed(f)) = Framing::for_axis(&s, Some(DVec3::new(0.0, 1.0, 1.0)))
-        else {
+        assert_eq!(
+            (f.t, f.n, f.b),
+            (DVec3::X, DVec3::Y, DVec3::Z),
+            "default frame"
+        );
+        let Some(Framing::Fixed(f)) = Framing::for_axis(&s, Some(DVec3::new(0.0, 1.0, 1.0))) else {
             panic!("hinted frame");
         };
         let r = 0.5f64.sqrt();
-        assert!((f.n - DVec3::new(0.0, r, r)).length() < 1e-15, "n closest to hint");
-        assert_eq!(Framing::for_axis(&s, Some(DVec3::X)), None, "hint parallel to t");
+        assert!(
+            (f.n - DVec3::new(0.0, r, r)).length() < 1e-15,
+            "n closest to hint"
+        );
+        assert_eq!(
+            Framing::for_axis(&s, Some(DVec3::X)),
+            None,
+            "hint parallel to t"
+        );
         // Nearly straight within tolerance is straight; just above it is Frenet.
         let mut near = s;
         near.points[1].y = 0.5e-9 * 3.0;
-        assert!(matches!(Framing::for_axis(&near, None), Some(Framing::Fixed(_))), "within tol");
+        assert!(
+            matches!(Framing::for_axis(&near, None), Some(Framing::Fixed(_))),
+            "within tol"
+        );
         near.points[1].y = 2e-9 * 3.0;
-        assert_eq!(Framing::for_axis(&near, None), Some(Framing::Frenet), "above tol");
+        assert_eq!(
+            Framing::for_axis(&near, None),
+            Some(Framing::Frenet),
+            "above tol"
+        );
         // Just above the tolerance the Frenet frame is still well defined: b is e_z to 1e-6.
         let f = FrameAt::new(&near, &Framing::Frenet, 0.3).frame;
-        assert!((f.b.abs() - DVec3::Z).length() < 1e-6, "nearly straight frame {f:?}");
+        assert!(
+            (f.b.abs() - DVec3::Z).length() < 1e-6,
+            "nearly straight frame {f:?}"
+        );
     }
 
     #[test]
@@ -258,7 +328,13 @@ mod tests {
         ]);
         let at = FrameAt::new(&c, &Framing::Frenet, 0.5).frame;
         let right = FrameAt::new(&c, &Framing::Frenet, 0.5 + 1e-4).frame;
-        assert!(at.b.is_finite() && at.n.is_finite(), "frame finite at the inflection");
-        assert!((at.b - right.b).length() < 1e-9, "limit from the right: {at:?} vs {right:?}");
+        assert!(
+            at.b.is_finite() && at.n.is_finite(),
+            "frame finite at the inflection"
+        );
+        assert!(
+            (at.b - right.b).length() < 1e-9,
+            "limit from the right: {at:?} vs {right:?}"
+        );
     }
 }

@@ -26,6 +26,7 @@ pub mod intersect;
 pub mod real;
 pub mod roots;
 pub mod section;
+pub mod strand;
 pub mod sweep;
 
 pub use curve::CubicBezier;
@@ -33,4 +34,5 @@ pub use cylinder::{Aabb, FiberSpec, GeneralizedCylinder, GeometryError, Hit, Par
 pub use frame::{Frame, FrameAt, Framing};
 pub use intersect::Method;
 pub use section::{BezierLoop, CrossSection, Section, UnitCircle};
+pub use strand::Strand;
 pub use sweep::{HairSweep, SweepRule};

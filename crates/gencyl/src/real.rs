@@ -80,7 +80,10 @@ pub struct Dual<T> {
 impl<T: Real> Dual<T> {
     /// The independent variable at `x` (derivative 1).
     pub fn var(x: T) -> Self {
-        Dual { v: x, d: T::cst(1.0) }
+        Dual {
+            v: x,
+            d: T::cst(1.0),
+        }
     }
 }
 
@@ -88,21 +91,30 @@ impl<T: Real> Add for Dual<T> {
     type Output = Self;
     #[inline]
     fn add(self, o: Self) -> Self {
-        Dual { v: self.v + o.v, d: self.d + o.d }
+        Dual {
+            v: self.v + o.v,
+            d: self.d + o.d,
+        }
     }
 }
 impl<T: Real> Sub for Dual<T> {
     type Output = Self;
     #[inline]
     fn sub(self, o: Self) -> Self {
-        Dual { v: self.v - o.v, d: self.d - o.d }
+        Dual {
+            v: self.v - o.v,
+            d: self.d - o.d,
+        }
     }
 }
 impl<T: Real> Mul for Dual<T> {
     type Output = Self;
     #[inline]
     fn mul(self, o: Self) -> Self {
-        Dual { v: self.v * o.v, d: self.d * o.v + self.v * o.d }
+        Dual {
+            v: self.v * o.v,
+            d: self.d * o.v + self.v * o.d,
+        }
     }
 }
 impl<T: Real> Div for Dual<T> {
@@ -111,21 +123,30 @@ impl<T: Real> Div for Dual<T> {
     #[inline]
     fn div(self, o: Self) -> Self {
         let v = self.v / o.v;
-        Dual { v, d: (self.d - v * o.d) / o.v }
+        Dual {
+            v,
+            d: (self.d - v * o.d) / o.v,
+        }
     }
 }
 impl<T: Real> Neg for Dual<T> {
     type Output = Self;
     #[inline]
     fn neg(self) -> Self {
-        Dual { v: -self.v, d: -self.d }
+        Dual {
+            v: -self.v,
+            d: -self.d,
+        }
     }
 }
 
 impl<T: Real> Real for Dual<T> {
     #[inline]
     fn cst(x: f64) -> Self {
-        Dual { v: T::cst(x), d: T::cst(0.0) }
+        Dual {
+            v: T::cst(x),
+            d: T::cst(0.0),
+        }
     }
     #[inline]
     fn value(self) -> f64 {
@@ -134,23 +155,38 @@ impl<T: Real> Real for Dual<T> {
     #[inline]
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
-        Dual { v: s, d: self.d / (s + s) }
+        Dual {
+            v: s,
+            d: self.d / (s + s),
+        }
     }
     #[inline]
     fn sin(self) -> Self {
-        Dual { v: self.v.sin(), d: self.d * self.v.cos() }
+        Dual {
+            v: self.v.sin(),
+            d: self.d * self.v.cos(),
+        }
     }
     #[inline]
     fn cos(self) -> Self {
-        Dual { v: self.v.cos(), d: -(self.d * self.v.sin()) }
+        Dual {
+            v: self.v.cos(),
+            d: -(self.d * self.v.sin()),
+        }
     }
     #[inline]
     fn sqr(self) -> Self {
-        Dual { v: self.v.sqr(), d: (self.v * self.d).scale(2.0) }
+        Dual {
+            v: self.v.sqr(),
+            d: (self.v * self.d).scale(2.0),
+        }
     }
     #[inline]
     fn scale(self, k: f64) -> Self {
-        Dual { v: self.v.scale(k), d: self.d.scale(k) }
+        Dual {
+            v: self.v.scale(k),
+            d: self.d.scale(k),
+        }
     }
 }
 
@@ -167,7 +203,10 @@ pub struct Interval {
 
 impl Interval {
     /// The whole real line.
-    pub const ENTIRE: Interval = Interval { lo: f64::NEG_INFINITY, hi: f64::INFINITY };
+    pub const ENTIRE: Interval = Interval {
+        lo: f64::NEG_INFINITY,
+        hi: f64::INFINITY,
+    };
 
     /// `[lo, hi]`, widened by one ulp each way; NaN bounds give [`Interval::ENTIRE`].
     #[inline]
@@ -175,7 +214,10 @@ impl Interval {
         if lo.is_nan() || hi.is_nan() {
             Self::ENTIRE
         } else {
-            Interval { lo: lo.next_down(), hi: hi.next_up() }
+            Interval {
+                lo: lo.next_down(),
+                hi: hi.next_up(),
+            }
         }
     }
 
@@ -231,7 +273,12 @@ impl Mul for Interval {
     type Output = Self;
     #[inline]
     fn mul(self, o: Self) -> Self {
-        let (a, b, c, d) = (self.lo * o.lo, self.lo * o.hi, self.hi * o.lo, self.hi * o.hi);
+        let (a, b, c, d) = (
+            self.lo * o.lo,
+            self.lo * o.hi,
+            self.hi * o.lo,
+            self.hi * o.hi,
+        );
         // 0 * inf is NaN; the true product set is unbounded only if a factor is.
         if a.is_nan() || b.is_nan() || c.is_nan() || d.is_nan() {
             return Interval::ENTIRE;
@@ -246,7 +293,12 @@ impl Div for Interval {
         if !o.excludes_zero() {
             return Interval::ENTIRE;
         }
-        let (a, b, c, d) = (self.lo / o.lo, self.lo / o.hi, self.hi / o.lo, self.hi / o.hi);
+        let (a, b, c, d) = (
+            self.lo / o.lo,
+            self.lo / o.hi,
+            self.hi / o.lo,
+            self.hi / o.hi,
+        );
         if a.is_nan() || b.is_nan() || c.is_nan() || d.is_nan() {
             return Interval::ENTIRE;
         }
@@ -257,7 +309,10 @@ impl Neg for Interval {
     type Output = Self;
     #[inline]
     fn neg(self) -> Self {
-        Interval { lo: -self.hi, hi: -self.lo }
+        Interval {
+            lo: -self.hi,
+            hi: -self.lo,
+        }
     }
 }
 
@@ -275,9 +330,11 @@ impl Real for Interval {
         // Rounding can push a sum of squares a hair below zero; the exact value is not.
         Interval::new(self.lo.max(0.0).sqrt(), self.hi.max(0.0).sqrt())
     }
+    #[inline]
     fn sin(self) -> Self {
         (self - Interval::cst(std::f64::consts::FRAC_PI_2)).cos()
     }
+    #[inline]
     fn cos(self) -> Self {
         use std::f64::consts::{PI, TAU};
         if !(self.width() < PI) {
@@ -338,7 +395,10 @@ impl<T: Real> V2<T> {
     /// Lifts a constant `f64` vector.
     #[inline]
     pub fn cst(p: glam::DVec2) -> Self {
-        V2 { x: T::cst(p.x), y: T::cst(p.y) }
+        V2 {
+            x: T::cst(p.x),
+            y: T::cst(p.y),
+        }
     }
     /// The dot product.
     #[inline]
@@ -366,7 +426,11 @@ impl<T: Real> V3<T> {
     /// Lifts a constant `f64` vector.
     #[inline]
     pub fn cst(p: glam::DVec3) -> Self {
-        V3 { x: T::cst(p.x), y: T::cst(p.y), z: T::cst(p.z) }
+        V3 {
+            x: T::cst(p.x),
+            y: T::cst(p.y),
+            z: T::cst(p.z),
+        }
     }
     /// The dot product.
     #[inline]
@@ -395,12 +459,20 @@ impl<T: Real> V3<T> {
     /// `self * k`.
     #[inline]
     pub fn mul(self, k: T) -> Self {
-        V3 { x: self.x * k, y: self.y * k, z: self.z * k }
+        V3 {
+            x: self.x * k,
+            y: self.y * k,
+            z: self.z * k,
+        }
     }
     /// `self / k`.
     #[inline]
     pub fn div(self, k: T) -> Self {
-        V3 { x: self.x / k, y: self.y / k, z: self.z / k }
+        V3 {
+            x: self.x / k,
+            y: self.y / k,
+            z: self.z / k,
+        }
     }
     /// Representative values.
     #[inline]
@@ -413,28 +485,42 @@ impl<T: Real> Add for V3<T> {
     type Output = Self;
     #[inline]
     fn add(self, o: Self) -> Self {
-        V3 { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+        V3 {
+            x: self.x + o.x,
+            y: self.y + o.y,
+            z: self.z + o.z,
+        }
     }
 }
 impl<T: Real> Sub for V3<T> {
     type Output = Self;
     #[inline]
     fn sub(self, o: Self) -> Self {
-        V3 { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
+        V3 {
+            x: self.x - o.x,
+            y: self.y - o.y,
+            z: self.z - o.z,
+        }
     }
 }
 impl<T: Real> Add for V2<T> {
     type Output = Self;
     #[inline]
     fn add(self, o: Self) -> Self {
-        V2 { x: self.x + o.x, y: self.y + o.y }
+        V2 {
+            x: self.x + o.x,
+            y: self.y + o.y,
+        }
     }
 }
 impl<T: Real> Sub for V2<T> {
     type Output = Self;
     #[inline]
     fn sub(self, o: Self) -> Self {
-        V2 { x: self.x - o.x, y: self.y - o.y }
+        V2 {
+            x: self.x - o.x,
+            y: self.y - o.y,
+        }
     }
 }
 
@@ -447,7 +533,9 @@ mod tests {
     fn interval_operations_enclose_pointwise_results() {
         let mut seed = 12345u64;
         let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((seed >> 11) as f64 / (1u64 << 53) as f64) * 8.0 - 4.0
         };
         for _ in 0..2000 {
@@ -472,7 +560,10 @@ mod tests {
     #[test]
     fn interval_cos_finds_interior_extrema() {
         let c = Interval::exact(-0.5, 0.5).cos();
-        assert!(c.hi >= 1.0 && c.lo <= 0.5f64.cos(), "max of cos at 0 missed: {c:?}");
+        assert!(
+            c.hi >= 1.0 && c.lo <= 0.5f64.cos(),
+            "max of cos at 0 missed: {c:?}"
+        );
         let c = Interval::exact(3.0, 3.3).cos();
         assert!(c.lo <= -1.0, "min of cos at pi missed: {c:?}");
         let c = Interval::exact(0.2, 0.3).cos();
@@ -492,9 +583,18 @@ mod tests {
         let h = 1.0 + x * x;
         let expected = (dg * h - g * 2.0 * x) / (h * h);
         assert!((r.v - g / h).abs() < 1e-15, "value {r:?}");
-        assert!((r.d - expected).abs() < 1e-14, "derivative {} vs {expected}", r.d);
+        assert!(
+            (r.d - expected).abs() < 1e-14,
+            "derivative {} vs {expected}",
+            r.d
+        );
         // Second derivative through nesting, against a central difference of the first.
-        let d2 = f(Dual { v: Dual::var(x), d: Dual::cst(1.0) }).d.d;
+        let d2 = f(Dual {
+            v: Dual::var(x),
+            d: Dual::cst(1.0),
+        })
+        .d
+        .d;
         let h = 1e-5;
         let fd = (f(Dual::var(x + h)).d - f(Dual::var(x - h)).d) / (2.0 * h);
         assert!((d2 - fd).abs() < 1e-8, "second derivative {d2} vs {fd}");

@@ -40,7 +40,8 @@ pub const MAX_ROOTS: usize = 16;
 /// A smooth real function of one variable that can also be enclosed over an interval.
 ///
 /// `eval` is written once over [`Real`]; [`isolate_roots`] calls it with `Dual<f64>` for values
-/// and slopes and with `Dual<Interval>` for enclosures of the function and its derivative.
+/// and slopes and with second-order duals of [`Interval`]s for enclosures of the function and
+/// its first two derivatives.
 pub trait Function1D {
     /// `f(u)` over any scalar.
     fn eval<T: Real>(&self, u: T) -> T;
@@ -61,7 +62,11 @@ pub struct IsolateOptions {
 
 impl Default for IsolateOptions {
     fn default() -> Self {
-        IsolateOptions { min_width: 1e-10, tangent_tolerance: 1e-9, max_evaluations: 4000 }
+        IsolateOptions {
+            min_width: 1e-10,
+            tangent_tolerance: 1e-9,
+            max_evaluations: 4000,
+        }
     }
 }
 
@@ -90,16 +95,20 @@ pub fn isolate_roots<F: Function1D>(
     let mut complete = true;
     while let Some((a, b)) = stack.pop() {
         evaluations += 1;
+        let (fa, fb) = (value(a).0, value(b).0);
         if evaluations > opts.max_evaluations {
+            // Out of budget: fall back to sign changes at the ends for what is left.
             complete = false;
-            break;
-        }
-        let e = f.eval(Dual::var(Interval::exact(a, b)));
-        if e.v.excludes_zero() {
+            if let Some(r) = bracketed_root(&value, a, b, fa, fb) {
+                push_root(out, r);
+            }
             continue;
         }
-        let (fa, fb) = (value(a).0, value(b).0);
-        if e.d.excludes_zero() {
+        let (enclosure, slope) = enclose(f, a, b);
+        if enclosure.excludes_zero() {
+            continue;
+        }
+        if slope.excludes_zero() {
             if let Some(r) = bracketed_root(&value, a, b, fa, fb) {
                 push_root(out, r);
             }
@@ -120,12 +129,49 @@ pub fn isolate_roots<F: Function1D>(
         stack.push((m, b));
         stack.push((a, m));
     }
+    // Roots from the budget fallback can come out of order.
+    out.sort_by(f64::total_cmp);
     complete
+}
+
+/// Enclosures of `f` and `f'` over `[a, b]`: the natural interval extensions intersected with
+/// the second-order centred forms (Taylor's theorem about the midpoint `m`, `h = (b - a)/2`)
+/// `f(x) in f(m) + f'(m) [-h, h] + f''([a, b]) [0, h^2] / 2` and
+/// `f'(x) in f'(m) + f''([a, b]) [-h, h]`, which shrink quadratically with the width where the
+/// natural extensions shrink only linearly.
+fn enclose<F: Function1D>(f: &F, a: f64, b: f64) -> (Interval, Interval) {
+    let second = |x: Interval| {
+        f.eval(Dual {
+            v: Dual::var(x),
+            d: Dual::cst(1.0),
+        })
+    };
+    let whole = second(Interval::exact(a, b));
+    let (nat_v, nat_d, dd) = (whole.v.v, whole.v.d, whole.d.d);
+    let m = 0.5 * (a + b);
+    let h = 0.5 * (b - a);
+    let mid = second(Interval::cst(m));
+    let (fm, dm) = (mid.v.v, mid.v.d);
+    let span = Interval::new(-h, h);
+    let value = fm + dm * span + dd * Interval::new(0.0, 0.5 * h * h);
+    let slope = dm + dd * span;
+    (meet(nat_v, value), meet(nat_d, slope))
+}
+
+/// The intersection of two enclosures of the same quantity (either one if they are disjoint,
+/// which only rounding of an unbounded enclosure can cause).
+fn meet(x: Interval, y: Interval) -> Interval {
+    let (lo, hi) = (x.lo.max(y.lo), x.hi.min(y.hi));
+    if lo <= hi { Interval::exact(lo, hi) } else { x }
 }
 
 fn push_root(out: &mut ArrayVec<f64, MAX_ROOTS>, r: f64) {
     // A root on a shared end point of two subintervals is found twice.
-    if out.last().is_some_and(|&l| (r - l).abs() <= 1e-14 * (1.0 + r.abs())) || out.is_full() {
+    if out
+        .last()
+        .is_some_and(|&l| (r - l).abs() <= 1e-14 * (1.0 + r.abs()))
+        || out.is_full()
+    {
         return;
     }
     out.push(r);
@@ -134,7 +180,13 @@ fn push_root(out: &mut ArrayVec<f64, MAX_ROOTS>, r: f64) {
 /// The root of a continuous `f` in `[a, b]` when `f(a)` and `f(b)` differ in sign (or one is 0),
 /// by Newton steps kept inside the shrinking bracket, bisecting when a step leaves it or
 /// converges slowly. Stops at the resolution of `f64`.
-pub fn bracketed_root(value: &impl Fn(f64) -> (f64, f64), a: f64, b: f64, fa: f64, fb: f64) -> Option<f64> {
+pub fn bracketed_root(
+    value: &impl Fn(f64) -> (f64, f64),
+    a: f64,
+    b: f64,
+    fa: f64,
+    fb: f64,
+) -> Option<f64> {
     if fa == 0.0 {
         return Some(a);
     }
@@ -190,7 +242,11 @@ mod tests {
         assert!((r[1] - 1e8).abs() < 1e-6, "large root {}", r[1]);
         assert_eq!(quadratic_roots(1.0, 0.0, 1.0).len(), 0, "complex roots");
         assert_eq!(quadratic_roots(0.0, 2.0, -1.0).as_slice(), &[0.5], "linear");
-        assert_eq!(quadratic_roots(1.0, -2.0, 1.0).as_slice(), &[1.0], "double root once");
+        assert_eq!(
+            quadratic_roots(1.0, -2.0, 1.0).as_slice(),
+            &[1.0],
+            "double root once"
+        );
     }
 
     struct Wiggle;
@@ -204,10 +260,15 @@ mod tests {
     #[test]
     fn isolate_finds_every_sign_change_of_a_wiggly_function() {
         let mut out = ArrayVec::new();
-        assert!(isolate_roots(&Wiggle, 0.0, 1.0, &IsolateOptions::default(), &mut out), "budget");
+        assert!(
+            isolate_roots(&Wiggle, 0.0, 1.0, &IsolateOptions::default(), &mut out),
+            "budget"
+        );
         let f = |u: f64| (40.0 * u).sin() - 0.3 + 0.2 * u;
         let n = 200_000;
-        let changes = (0..n).filter(|&i| f(i as f64 / n as f64).signum() != f((i + 1) as f64 / n as f64).signum()).count();
+        let changes = (0..n)
+            .filter(|&i| f(i as f64 / n as f64).signum() != f((i + 1) as f64 / n as f64).signum())
+            .count();
         assert_eq!(out.len(), changes, "roots {out:?}");
         for w in out.windows(2) {
             assert!(w[0] < w[1], "ascending");

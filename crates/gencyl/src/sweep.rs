@@ -10,8 +10,9 @@ pub trait SweepRule {
     fn apply<T: Real>(&self, u: T, p: V2<T>) -> V2<T>;
     /// `s^-1(q, u)`: `(n, b)` coordinates to section coordinates.
     fn inverse<T: Real>(&self, u: T, q: V2<T>) -> V2<T>;
-    /// An upper bound of `|s(p, u)| / |p|` over `u in [0, 1]`, for bounding boxes.
-    fn max_scale(&self) -> f64;
+    /// A linear upper bound `[L0, L1]` of the rule's stretch: `|s(p, u)| <= (L0 + (L1 - L0) u) |p|`
+    /// for `u in [0, 1]`. Bounds boxes and the frame-free prefilter of the intersector.
+    fn scale_bound(&self) -> [f64; 2];
     /// `+1` if every `s(., u)` keeps orientation (positive determinant), `-1` if every one
     /// reverses it (errata 4).
     fn orientation(&self) -> f64;
@@ -43,7 +44,11 @@ pub struct HairSweep {
 impl HairSweep {
     /// A round fiber of constant radius `r`.
     pub fn circular(r: f64) -> Self {
-        HairSweep { major: [r, r], minor: [r, r], rotation: [0.0, 0.0] }
+        HairSweep {
+            major: [r, r],
+            minor: [r, r],
+            rotation: [0.0, 0.0],
+        }
     }
 
     /// Whether the section is a circle at every `u` (`A(u) = B(u)`), so the rotation and the
@@ -83,11 +88,19 @@ impl SweepRule for HairSweep {
     fn inverse<T: Real>(&self, u: T, q: V2<T>) -> V2<T> {
         let th = Self::lerp(self.rotation, u);
         let (c, s) = (th.cos(), th.sin());
-        V2::new((c * q.x + s * q.y) / self.major_at(u), (c * q.y - s * q.x) / self.minor_at(u))
+        V2::new(
+            (c * q.x + s * q.y) / self.major_at(u),
+            (c * q.y - s * q.x) / self.minor_at(u),
+        )
     }
 
-    fn max_scale(&self) -> f64 {
-        self.major.iter().chain(&self.minor).fold(0.0, |m, r| m.max(r.abs()))
+    /// The stretch of `R diag(A, B)` is `max(A(u), B(u))`, a convex function of `u` (the maximum
+    /// of two linear ones), so the chord through its end values lies above it.
+    fn scale_bound(&self) -> [f64; 2] {
+        [
+            self.major[0].abs().max(self.minor[0].abs()),
+            self.major[1].abs().max(self.minor[1].abs()),
+        ]
     }
 
     fn orientation(&self) -> f64 {
@@ -99,7 +112,11 @@ impl SweepRule for HairSweep {
     }
 
     fn validate(&self) -> Result<(), String> {
-        for (name, k) in [("major_radius", self.major), ("minor_radius", self.minor), ("rotation", self.rotation)] {
+        for (name, k) in [
+            ("major_radius", self.major),
+            ("minor_radius", self.minor),
+            ("rotation", self.rotation),
+        ] {
             if !k.iter().all(|x| x.is_finite()) {
                 return Err(format!("{name} must be finite, got {k:?}"));
             }
@@ -120,13 +137,20 @@ mod tests {
 
     #[test]
     fn inverse_undoes_apply() {
-        let s = HairSweep { major: [0.05, 0.03], minor: [0.02, 0.025], rotation: [0.3, -2.0] };
+        let s = HairSweep {
+            major: [0.05, 0.03],
+            minor: [0.02, 0.025],
+            rotation: [0.3, -2.0],
+        };
         for i in 0..=10 {
             let u = i as f64 / 10.0;
             let p = V2::new(0.7 - u, 0.2 + u * u);
             let q = s.apply(u, p);
             let back = s.inverse(u, q);
-            assert!((back.value() - p.value()).length() < 1e-14, "round trip at {u}");
+            assert!(
+                (back.value() - p.value()).length() < 1e-14,
+                "round trip at {u}"
+            );
             // Area scales by det = A B: the unit square's image has area A(u) B(u).
             let e1 = s.apply(u, V2::new(1.0, 0.0)).value();
             let e2 = s.apply(u, V2::new(0.0, 1.0)).value();
@@ -135,8 +159,15 @@ mod tests {
             assert!((det - ab).abs() < 1e-16, "det {det} vs A B {ab}");
         }
         // theta turns from n toward b: at theta = pi/2 the major axis points along b.
-        let s = HairSweep { major: [2.0, 2.0], minor: [1.0, 1.0], rotation: [std::f64::consts::FRAC_PI_2; 2] };
+        let s = HairSweep {
+            major: [2.0, 2.0],
+            minor: [1.0, 1.0],
+            rotation: [std::f64::consts::FRAC_PI_2; 2],
+        };
         let q = s.apply(0.0, V2::new(1.0, 0.0)).value();
-        assert!((q - DVec2::new(0.0, 2.0)).length() < 1e-15, "rotation sense {q:?}");
+        assert!(
+            (q - DVec2::new(0.0, 2.0)).length() < 1e-15,
+            "rotation sense {q:?}"
+        );
     }
 }

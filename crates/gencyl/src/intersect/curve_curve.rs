@@ -4,7 +4,6 @@
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
-use super::{SideRoot, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
 use crate::real::{Dual, Real};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots};
@@ -44,7 +43,10 @@ impl<C: CrossSection, S: SweepRule> Function1D for PhiFn<'_, C, S> {
             PhiFeature::Curvature => {
                 // u as a doubly dual variable: .v.d and .d.v hold the first derivative,
                 // .d.d the second.
-                let uu = Dual { v: Dual::var(u), d: Dual::cst(1.0) };
+                let uu = Dual {
+                    v: Dual::var(u),
+                    d: Dual::cst(1.0),
+                };
                 let p = self.cyl.phi_r(self.o, self.d, uu).0;
                 let (dx, dy) = (p.x.v.d, p.y.v.d);
                 let (ddx, ddy) = (p.x.d.d, p.y.d.d);
@@ -71,13 +73,33 @@ trait PlaneCurve {
 
     fn piece(&self, s0: f64, s1: f64) -> Piece {
         let ((p0, d0), (p1, d1)) = (self.eval(s0), self.eval(s1));
-        Piece { s0, s1, p0, p1, d0, d1 }
+        Piece {
+            s0,
+            s1,
+            p0,
+            p1,
+            d0,
+            d1,
+        }
     }
 
     fn split(&self, p: &Piece) -> (Piece, Piece) {
         let m = 0.5 * (p.s0 + p.s1);
         let (pm, dm) = self.eval(m);
-        (Piece { s1: m, p1: pm, d1: dm, ..*p }, Piece { s0: m, p0: pm, d0: dm, ..*p })
+        (
+            Piece {
+                s1: m,
+                p1: pm,
+                d1: dm,
+                ..*p
+            },
+            Piece {
+                s0: m,
+                p0: pm,
+                d0: dm,
+                ..*p
+            },
+        )
     }
 }
 
@@ -141,9 +163,9 @@ fn boxes_overlap(a: &Piece, b: &Piece) -> bool {
 struct Intersector<'a, C, S> {
     phi: PhiCurve<'a, C, S>,
     cs: SectionCurve<'a, C>,
-    /// Pole-free `u` range: Newton results outside it are rejected.
+    /// Newton results outside this `u` range are rejected.
     range: (f64, f64),
-    found: ArrayVec<(f64, f64), 64>,
+    found: &'a mut Found,
 }
 
 impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
@@ -215,18 +237,25 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
     }
 }
 
-/// Side roots on the pole-free range `[lo, hi]` by the general method.
+/// Roots `(u, v)` of `phi(u) = cs(v)` for `u` in `range`, where `phi` must be finite, by the
+/// general method; Newton results anywhere in `valid` are kept (a root at the edge of `range`
+/// may converge just outside it). Appends to `found`.
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
     d: DVec3,
-    lo: f64,
-    hi: f64,
-    out: &mut SideRoots,
+    range: (f64, f64),
+    valid: (f64, f64),
+    found: &mut Found,
 ) {
+    let (lo, hi) = range;
     // Split phi at vertical and horizontal tangents and at inflections.
     let mut breaks: Vec<f64> = vec![lo, hi];
-    let opts = IsolateOptions { tangent_tolerance: 0.0, min_width: 1e-9, max_evaluations: 3000 };
+    let opts = IsolateOptions {
+        tangent_tolerance: 0.0,
+        min_width: 1e-9,
+        max_evaluations: 3000,
+    };
     for feature in [PhiFeature::DxDu, PhiFeature::DyDu, PhiFeature::Curvature] {
         let mut r = ArrayVec::<f64, MAX_ROOTS>::new();
         isolate_roots(&PhiFn { cyl, o, d, feature }, lo, hi, &opts, &mut r);
@@ -235,7 +264,12 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     breaks.sort_by(f64::total_cmp);
     breaks.dedup();
 
-    let mut it = Intersector { phi: PhiCurve { cyl, o, d }, cs: SectionCurve(&cyl.section), range: (lo, hi), found: ArrayVec::new() };
+    let mut it = Intersector {
+        phi: PhiCurve { cyl, o, d },
+        cs: SectionCurve(&cyl.section),
+        range: valid,
+        found,
+    };
     let vb = cyl.section.monotone_breaks();
     for uw in breaks.windows(2) {
         let a = it.phi.piece(uw[0], uw[1]);
@@ -247,11 +281,16 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
             it.intersect(a, b, 0);
         }
     }
-    // Neighbouring leaf pairs converge to the same root: keep one.
-    let mut found = it.found;
+}
+
+/// Roots found by the general method: `(u, v)`.
+pub(crate) type Found = ArrayVec<(f64, f64), 64>;
+
+/// Neighbouring leaf pairs converge to the same root: keeps one of each, sorted by `u`.
+pub(crate) fn dedupe(found: &mut Found) {
     found.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut kept: ArrayVec<(f64, f64), 64> = ArrayVec::new();
-    for (u, v) in found {
+    let mut kept = Found::new();
+    for &(u, v) in found.iter() {
         let dup = kept.iter().any(|&(ku, kv)| {
             let dv = (kv - v).abs();
             (ku - u).abs() <= 1e-9 && dv.min(std::f64::consts::TAU - dv) <= 1e-7
@@ -260,12 +299,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
             kept.push((u, v));
         }
     }
-    for (u, v) in kept {
-        let w = cyl.plane_offset_r(o, d, u).1;
-        if w.is_finite() && !out.is_full() {
-            out.push(SideRoot { u, w, v });
-        }
-    }
+    *found = kept;
 }
 
 #[cfg(test)]
@@ -279,7 +313,15 @@ mod tests {
         let d = coordinate_deviation(0.0, 1.0, 0.0, 1.0, 0.0, 2.0);
         assert!((d - 0.5 / 2f64.sqrt()).abs() < 1e-15, "deviation {d}");
         // A straight graph is linear; parallel off-chord tangents are not.
-        assert_eq!(coordinate_deviation(0.0, 2.0, 1.0, 5.0, 2.0, 2.0), 0.0, "line");
-        assert_eq!(coordinate_deviation(0.0, 1.0, 0.0, 1.0, 0.0, 0.0), f64::INFINITY, "parallel");
+        assert_eq!(
+            coordinate_deviation(0.0, 2.0, 1.0, 5.0, 2.0, 2.0),
+            0.0,
+            "line"
+        );
+        assert_eq!(
+            coordinate_deviation(0.0, 1.0, 0.0, 1.0, 0.0, 0.0),
+            f64::INFINITY,
+            "parallel"
+        );
     }
 }

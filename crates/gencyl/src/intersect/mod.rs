@@ -7,13 +7,15 @@
 //! 1. Where `q` vanishes on all of `[0, 1]` (the axis lies in a plane perpendicular to the ray),
 //!    the ray lies in the normal plane at each root of `N(u) = a'(u).(a(u) - o)` and nowhere
 //!    else meets one: intersect the ray with the contour there, in 2D ([`Self::in_plane_roots`]).
-//! 2. Otherwise split `[0, 1]` at the roots of `q` (poles of `rho`); at a pole where `N` vanishes
-//!    too, the ray lies in that normal plane: intersect with the contour there as well.
-//! 3. On each pole-free piece solve `phi(u) on cs`, by one of the [`Method`]s.
+//! 2. Otherwise, at a root of `q` (a pole of `rho`) where `N` vanishes too, the ray lies in that
+//!    normal plane: intersect with the contour there as well.
+//! 3. Solve `phi(u) on cs` by one of the [`Method`]s. They work with `q phi` rather than `phi`
+//!    (see [`Radial`]), which is finite through the poles, so no splitting at poles is needed.
 //! 4. Caps: the ray against the planes at `u = 0` and `u = 1`, inside the section.
 
 mod curve_curve;
 mod polynomial;
+mod prefilter;
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
@@ -47,6 +49,11 @@ pub enum Method {
 /// the joint of two strand segments is not lost between them to rounding.
 pub(crate) const U_MARGIN: f64 = 1e-11;
 
+/// A prefilter range `[a, b]` of `[0, 1]` grown to the search margin at the ends of `[lo, hi]`.
+fn widen(a: f64, b: f64, lo: f64, hi: f64) -> (f64, f64) {
+    (if a <= 0.0 { lo } else { a }, if b >= 1.0 { hi } else { b })
+}
+
 /// A side-surface root: axis parameter, local ray parameter, section parameter.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SideRoot {
@@ -70,24 +77,77 @@ impl<C: CrossSection, S: SweepRule> Function1D for PlaneFoot<'_, C, S> {
     }
 }
 
-/// `|phi(u)|^2 - 1`: zero where the ray meets the unit-circle section.
+/// `g(u) = q^2 (|phi(u)|^2 - R^2) = |q phi|^2 - R^2 q^2`: negative exactly where the ray's
+/// point in the normal plane at `u` maps inside the disc of radius `R` in section coordinates.
+/// With `R = 1` its roots are the hits on the unit-circle section. Unlike `|phi|^2 - R^2` it has
+/// no poles where `q = a'.d` vanishes (there `g = |s^-1(m d)|^2 >= 0`, zero only when the ray lies
+/// in that normal plane), so one root search covers `[0, 1]` and interval enclosures stay tight.
 pub(crate) struct Radial<'a, C, S> {
     pub cyl: &'a GeneralizedCylinder<C, S>,
     pub o: DVec3,
     pub d: DVec3,
+    pub radius: f64,
 }
 
 impl<C: CrossSection, S: SweepRule> Function1D for Radial<'_, C, S> {
     #[inline]
     fn eval<T: Real>(&self, u: T) -> T {
         if let Some(k) = self.cyl.sweep.uniform_scale() {
-            // |phi| = |rho| / r(u) = |o + w d - a| / r(u): no frame needed.
-            let (e, _) = self.cyl.plane_offset_r(self.o, self.d, u);
-            let r = T::cst(k[0]) + u.scale(k[1] - k[0]);
-            e.norm2() / r.sqr() - T::cst(1.0)
+            // |q phi| = |V| / r(u): no frame needed (the polynomial of `Method::Polynomial`).
+            let (v, q) = self.cyl.scaled_offset_r(self.o, self.d, u);
+            let r = (T::cst(k[0]) + u.scale(k[1] - k[0])).scale(self.radius);
+            v.norm2() - (r * q).sqr()
         } else {
-            self.cyl.phi_r(self.o, self.d, u).0.norm2() - T::cst(1.0)
+            let (qphi, q) = self.cyl.scaled_phi_r(self.o, self.d, u);
+            qphi.norm2() - q.sqr().scale(self.radius * self.radius)
         }
+    }
+}
+
+impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
+    /// Largest `|a'(u).d|` bound: the scale of `q`, for relative tolerances.
+    pub(crate) fn q_scale(&self, d: DVec3) -> f64 {
+        self.axis
+            .hodograph()
+            .iter()
+            .fold(0.0f64, |m, h| m.max(h.length()))
+            * d.length()
+    }
+
+    /// Root-isolation settings for [`Radial`]: `g = q^2 (|phi|^2 - R^2)`, so a tangential root is
+    /// accepted where `|g| <= 1e-9 q_scale^2 R^2` (the ray passes within about `5e-10` of the
+    /// section size of the surface).
+    fn radial_options(&self, d: DVec3, radius: f64) -> IsolateOptions {
+        let qs = self.q_scale(d) * radius;
+        IsolateOptions {
+            tangent_tolerance: 1e-9 * qs * qs,
+            ..Default::default()
+        }
+    }
+
+    /// The sorted roots of [`Radial`] with the given radius on `[lo, hi]`.
+    pub(crate) fn radial_roots_between(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        radius: f64,
+        lo: f64,
+        hi: f64,
+    ) -> ArrayVec<f64, MAX_ROOTS> {
+        let mut us = ArrayVec::new();
+        isolate_roots(
+            &Radial {
+                cyl: self,
+                o,
+                d,
+                radius,
+            },
+            lo,
+            hi,
+            &self.radial_options(d, radius),
+            &mut us,
+        );
+        us
     }
 }
 
@@ -106,13 +166,22 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 
     /// [`Self::intersect_all`] with a chosen method for the side surface; a method that does not
     /// apply to this cylinder (say `Polynomial` for an ellipse) is replaced by `General`.
-    pub fn intersect_all_with(&self, ray: &Ray, tmin: f64, tmax: f64, method: Method, out: &mut Vec<Hit>) {
+    pub fn intersect_all_with(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: f64,
+        method: Method,
+        out: &mut Vec<Hit>,
+    ) {
         let d = ray.dir;
         let start = out.len();
         if !(d.length_squared() > 0.0) || !d.is_finite() || !ray.origin.is_finite() {
             return;
         }
-        let Some((b0, b1)) = self.bounds().ray_range(ray) else { return };
+        let Some((b0, b1)) = self.bounds().ray_range(ray) else {
+            return;
+        };
         if b1 <= tmin || b0 >= tmax {
             return;
         }
@@ -127,17 +196,29 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             let t = t0 + r.w;
             if t > tmin && t < tmax && t.is_finite() {
                 let u = r.u.clamp(0.0, 1.0);
-                out.push(Hit { t, u, v: r.v, point: ray.at(t), normal: self.normal(u, r.v), part: Part::Side });
+                out.push(Hit {
+                    t,
+                    u,
+                    v: r.v,
+                    point: ray.at(t),
+                    normal: self.normal(u, r.v),
+                    part: Part::Side,
+                });
             }
         }
-        if self.caps {
-            for part in [Part::StartCap, Part::EndCap] {
-                if let Some((w, v)) = self.cap_root(o, d, part) {
-                    let t = t0 + w;
-                    if t > tmin && t < tmax {
-                        let u = if part == Part::StartCap { 0.0 } else { 1.0 };
-                        out.push(Hit { t, u, v, point: ray.at(t), normal: self.cap_normal(part), part });
-                    }
+        for (part, closed) in [(Part::StartCap, self.caps[0]), (Part::EndCap, self.caps[1])] {
+            if let Some((w, v)) = closed.then(|| self.cap_root(o, d, part)).flatten() {
+                let t = t0 + w;
+                if t > tmin && t < tmax {
+                    let u = if part == Part::StartCap { 0.0 } else { 1.0 };
+                    out.push(Hit {
+                        t,
+                        u,
+                        v,
+                        point: ray.at(t),
+                        normal: self.cap_normal(part),
+                        part,
+                    });
                 }
             }
         }
@@ -166,7 +247,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         if qb.iter().all(|x| x.abs() <= 1e-13 * scale) {
             let mut feet = ArrayVec::new();
             let size = self.bounds().max - self.bounds().min;
-            let opts = IsolateOptions { tangent_tolerance: 1e-24 * scale * size.length_squared(), ..Default::default() };
+            let opts = IsolateOptions {
+                tangent_tolerance: 1e-24 * scale * size.length_squared(),
+                ..Default::default()
+            };
             isolate_roots(&PlaneFoot { cyl: self, o }, lo, hi, &opts, &mut feet);
             for u in feet {
                 self.in_plane_roots(o, d, u, out);
@@ -174,10 +258,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             return;
         }
         // Step 2: the poles, q(u) = qb0 (1-u)^2 + 2 qb1 u (1-u) + qb2 u^2.
-        let poles: ArrayVec<f64, 2> = quadratic_roots(qb[0] - 2.0 * qb[1] + qb[2], 2.0 * (qb[1] - qb[0]), qb[0])
-            .into_iter()
-            .filter(|&u| u > lo && u < hi)
-            .collect();
+        let poles: ArrayVec<f64, 2> =
+            quadratic_roots(qb[0] - 2.0 * qb[1] + qb[2], 2.0 * (qb[1] - qb[0]), qb[0])
+                .into_iter()
+                .filter(|&u| u > lo && u < hi)
+                .collect();
         let size = (self.bounds().max - self.bounds().min).length();
         for &up in &poles {
             let n = PlaneFoot { cyl: self, o }.eval(up);
@@ -186,34 +271,50 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             }
         }
         // Step 3.
-        if method == Method::Polynomial {
-            polynomial::roots(self, o, d, lo, hi, out);
-            return;
-        }
-        let mut ends: ArrayVec<f64, 4> = ArrayVec::new();
-        ends.push(lo);
-        ends.extend(poles.iter().copied());
-        ends.push(hi);
-        for w in ends.windows(2) {
-            // Keep off the pole itself, where w(u) is infinite: a root that close would be a hit
-            // about 1e12 fiber sizes away unless N vanishes too, which step 2 handles.
-            let a = if w[0] == lo { lo } else { w[0] + 1e-12 * (1.0 + w[0].abs()) };
-            let b = if w[1] == hi { hi } else { w[1] - 1e-12 * (1.0 + w[1].abs()) };
-            if a >= b {
-                continue;
+        match method {
+            Method::Polynomial => polynomial::roots(self, o, d, lo, hi, out),
+            Method::Radial => {
+                for (a, b) in prefilter::candidate_ranges(self, o, d) {
+                    let (a, b) = widen(a, b, lo, hi);
+                    for u in self.radial_roots_between(o, d, 1.0, a, b) {
+                        self.push_circle_root(o, d, u, out);
+                    }
+                }
             }
-            match method {
-                Method::Radial => self.radial_roots(o, d, a, b, out),
-                _ => curve_curve::roots(self, o, d, a, b, out),
+            _ => {
+                // Only where phi lies in the section's bounding disc can it meet the section:
+                // between sign changes of g with R = the bounding radius, where g < 0. There phi
+                // is bounded (no poles), which keeps the subdivision short. A 1% larger disc keeps
+                // the hits well inside the ranges.
+                let r = self.section.bounding_radius() * 1.01;
+                let g = Radial {
+                    cyl: self,
+                    o,
+                    d,
+                    radius: r,
+                };
+                let mut found = ArrayVec::new();
+                for (a, b) in prefilter::candidate_ranges(self, o, d) {
+                    let (a, b) = widen(a, b, lo, hi);
+                    let mut ends: ArrayVec<f64, { MAX_ROOTS + 2 }> = ArrayVec::new();
+                    ends.push(a);
+                    ends.extend(self.radial_roots_between(o, d, r, a, b));
+                    ends.push(b);
+                    for w in ends.windows(2) {
+                        let (a, b) = (w[0], w[1]);
+                        if b > a && g.eval(0.5 * (a + b)) < 0.0 {
+                            curve_curve::roots(self, o, d, (a, b), (lo, hi), &mut found);
+                        }
+                    }
+                }
+                curve_curve::dedupe(&mut found);
+                for (u, v) in found {
+                    let w = self.plane_w_r(o, d, u);
+                    if w.is_finite() && !out.is_full() {
+                        out.push(SideRoot { u, w, v });
+                    }
+                }
             }
-        }
-    }
-
-    fn radial_roots(&self, o: DVec3, d: DVec3, a: f64, b: f64, out: &mut SideRoots) {
-        let mut us = ArrayVec::<f64, MAX_ROOTS>::new();
-        isolate_roots(&Radial { cyl: self, o, d }, a, b, &IsolateOptions::default(), &mut us);
-        for u in us {
-            self.push_circle_root(o, d, u, out);
         }
     }
 
@@ -221,7 +322,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     pub(crate) fn push_circle_root(&self, o: DVec3, d: DVec3, u: f64, out: &mut SideRoots) {
         let (phi, w) = self.phi_r(o, d, u);
         if w.is_finite() && !out.is_full() {
-            out.push(SideRoot { u, w, v: crate::section::angle(v2(phi)) });
+            out.push(SideRoot {
+                u,
+                w,
+                v: crate::section::angle(v2(phi)),
+            });
         }
     }
 
@@ -257,6 +362,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let w = f.t.dot(a - o) / denom;
         let e = o + w * d - a;
         let phi = v2(self.sweep.inverse(u, V2::new(f.n.dot(e), f.b.dot(e))));
-        self.section.contains(phi).then(|| (w, crate::section::angle(phi)))
+        self.section
+            .contains(phi)
+            .then(|| (w, crate::section::angle(phi)))
     }
 }

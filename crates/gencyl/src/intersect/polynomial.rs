@@ -8,12 +8,14 @@
 //! At a pole (`q = 0`), `F = m^2 |d|^2 >= 0` vanishes only where the ray lies in the normal
 //! plane, which the caller handles; so the roots of `F` with `q != 0` are exactly the hits.
 
+use arrayvec::ArrayVec;
 use glam::DVec3;
 use polycool::PolyDyn;
 
 use super::{Radial, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
-use crate::roots::{Function1D, bracketed_root};
+use crate::real::Dual;
+use crate::roots::Function1D;
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
@@ -36,7 +38,12 @@ pub(crate) fn hit_polynomial<C: CrossSection, S: SweepRule>(
 ) -> [f64; 11] {
     let p = cyl.axis.points;
     // a(u) = c0 + c1 u + c2 u^2 + c3 u^3.
-    let c = [p[0], 3.0 * (p[1] - p[0]), 3.0 * (p[2] - 2.0 * p[1] + p[0]), p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0]];
+    let c = [
+        p[0],
+        3.0 * (p[1] - p[0]),
+        3.0 * (p[2] - 2.0 * p[1] + p[0]),
+        p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0],
+    ];
     let e = [o - c[0], -c[1], -c[2], -c[3]];
     let da = [c[1], 2.0 * c[2], 3.0 * c[3]];
     let q = da.map(|x| x.dot(d));
@@ -71,8 +78,11 @@ pub(crate) fn hit_polynomial<C: CrossSection, S: SweepRule>(
     f
 }
 
-/// Side roots of a circular fiber on `[lo, hi]` from the roots of `F`, each polished by
-/// bracketed Newton iteration on the rational `|p|^2 / r^2 - 1`.
+/// Side roots of a circular fiber on `[lo, hi]`: the roots of `F` (Yuksel's method on the
+/// expanded coefficients), each polished by Newton's method on `F` evaluated in product form
+/// ([`Radial`], which is far better conditioned than the expanded coefficients where two roots
+/// nearly coincide: a ray almost in one normal plane). If a polish fails or two roots merge, the
+/// segment falls back to interval isolation.
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
@@ -81,25 +91,73 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     hi: f64,
     out: &mut SideRoots,
 ) {
-    let Some(r) = cyl.sweep.uniform_scale() else { return };
+    let Some(r) = cyl.sweep.uniform_scale() else {
+        return;
+    };
     let coeffs = hit_polynomial(cyl, o, d, r);
     let poly = PolyDyn::new(coeffs);
     let (mut found, mut scratch) = (Vec::with_capacity(10), Vec::with_capacity(10));
     poly.roots_between_with_buffer(lo, hi, 1e-13, &mut found, &mut scratch);
-    let radial = Radial { cyl, o, d };
+    let radial = Radial {
+        cyl,
+        o,
+        d,
+        radius: 1.0,
+    };
     let value = |u: f64| {
-        let r = radial.eval(crate::real::Dual::var(u));
+        let r = radial.eval(Dual::var(u));
         (r.v, r.d)
     };
-    let qscale = cyl.axis.hodograph().iter().fold(0.0f64, |m, h| m.max(h.length())) * d.length();
+    let qscale = cyl.q_scale(d);
+    let mut polished: ArrayVec<f64, 16> = ArrayVec::new();
     for u in found {
         // A root at a pole is the in-plane case, handled by the caller.
         if cyl.axis.d1(u).dot(d).abs() <= 1e-13 * qscale {
             continue;
         }
-        let h = 1e-9 * (1.0 + u.abs());
-        let (a, b) = (u - h, u + h);
-        let u = bracketed_root(&value, a, b, value(a).0, value(b).0).unwrap_or(u);
+        match newton(&value, u) {
+            Some(x) if (x - u).abs() <= 1e-4 && x >= lo && x <= hi && !polished.is_full() => {
+                polished.push(x)
+            }
+            _ => return fallback(cyl, o, d, lo, hi, out),
+        }
+    }
+    if polished.windows(2).any(|w| (w[1] - w[0]).abs() <= 1e-14) {
+        return fallback(cyl, o, d, lo, hi, out);
+    }
+    for u in polished {
         cyl.push_circle_root(o, d, u, out);
     }
+}
+
+fn fallback<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+    lo: f64,
+    hi: f64,
+    out: &mut SideRoots,
+) {
+    for u in cyl.radial_roots_between(o, d, 1.0, lo, hi) {
+        cyl.push_circle_root(o, d, u, out);
+    }
+}
+
+/// Newton's method from `x`; `None` unless the step falls below the resolution of `f64`.
+fn newton(value: &impl Fn(f64) -> (f64, f64), mut x: f64) -> Option<f64> {
+    for _ in 0..40 {
+        let (f, df) = value(x);
+        if f == 0.0 {
+            return Some(x);
+        }
+        let step = f / df;
+        if !step.is_finite() {
+            return None;
+        }
+        x -= step;
+        if step.abs() <= 4.0 * f64::EPSILON * x.abs().max(1e-300) {
+            return Some(x);
+        }
+    }
+    None
 }

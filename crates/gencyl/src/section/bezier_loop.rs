@@ -44,17 +44,35 @@ impl BezierLoop {
         }
         let k = points.len() / 3;
         let pieces: Vec<[DVec2; 4]> = (0..k)
-            .map(|i| [points[3 * i], points[3 * i + 1], points[3 * i + 2], points[(3 * i + 3) % points.len()]])
+            .map(|i| {
+                [
+                    points[3 * i],
+                    points[3 * i + 1],
+                    points[3 * i + 2],
+                    points[(3 * i + 3) % points.len()],
+                ]
+            })
             .collect();
         // Signed area by Green's theorem, exact for cubic pieces:
         // A = sum over pieces of (1/2) integral (x y' - y x') ds (here by 16-point Gauss rule,
         // exact for the degree-5 integrand).
-        let area: f64 = pieces.iter().map(|p| 0.5 * gauss16(|s| cross(eval(p, s), deriv(p, s)))).sum();
-        let radius = pieces.iter().flatten().map(|p| p.length()).fold(0.0, f64::max);
+        let area: f64 = pieces
+            .iter()
+            .map(|p| 0.5 * gauss16(|s| cross(eval(p, s), deriv(p, s))))
+            .sum();
+        let radius = pieces
+            .iter()
+            .flatten()
+            .map(|p| p.length())
+            .fold(0.0, f64::max);
         if !(area.abs() > 1e-12 * radius * radius) {
             return Err(ProfileError::NoArea);
         }
-        Ok(BezierLoop { pieces, orientation: area.signum(), radius })
+        Ok(BezierLoop {
+            pieces,
+            orientation: area.signum(),
+            radius,
+        })
     }
 
     /// The four-piece cubic approximation of the unit circle (control distance
@@ -64,7 +82,11 @@ impl BezierLoop {
         let pts: Vec<DVec2> = (0..4)
             .flat_map(|i| {
                 let r = |p: DVec2| rot90(p, i);
-                [r(DVec2::new(1.0, 0.0)), r(DVec2::new(1.0, k)), r(DVec2::new(k, 1.0))]
+                [
+                    r(DVec2::new(1.0, 0.0)),
+                    r(DVec2::new(1.0, k)),
+                    r(DVec2::new(k, 1.0)),
+                ]
             })
             .collect();
         BezierLoop::new(&pts).expect("the circle approximation is a valid loop")
@@ -90,7 +112,12 @@ impl BezierLoop {
     /// `sum_i (cross(dir, B_i(s) - p))` as a cubic in `s`, for each piece.
     fn cross_cubic(piece: &[DVec2; 4], p: DVec2, dir: DVec2) -> Cubic {
         let [c0, c1, c2, c3] = power(piece);
-        Cubic::new([cross(dir, c0 - p), cross(dir, c1), cross(dir, c2), cross(dir, c3)])
+        Cubic::new([
+            cross(dir, c0 - p),
+            cross(dir, c1),
+            cross(dir, c2),
+            cross(dir, c3),
+        ])
     }
 }
 
@@ -104,7 +131,12 @@ fn cross(a: DVec2, b: DVec2) -> f64 {
 
 /// Power-basis coefficients `c0 + c1 s + c2 s^2 + c3 s^3` of a cubic Bezier.
 fn power(p: &[DVec2; 4]) -> [DVec2; 4] {
-    [p[0], 3.0 * (p[1] - p[0]), 3.0 * (p[2] - 2.0 * p[1] + p[0]), p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0]]
+    [
+        p[0],
+        3.0 * (p[1] - p[0]),
+        3.0 * (p[2] - 2.0 * p[1] + p[0]),
+        p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0],
+    ]
 }
 
 fn eval(p: &[DVec2; 4], s: f64) -> DVec2 {
@@ -119,8 +151,18 @@ fn deriv(p: &[DVec2; 4], s: f64) -> DVec2 {
 
 fn gauss16(f: impl Fn(f64) -> f64) -> f64 {
     // 8-point Gauss-Legendre on [0, 1], applied on two halves.
-    const X: [f64; 4] = [0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363];
-    const W: [f64; 4] = [0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763];
+    const X: [f64; 4] = [
+        0.1834346424956498,
+        0.5255324099163290,
+        0.7966664774136267,
+        0.9602898564975363,
+    ];
+    const W: [f64; 4] = [
+        0.3626837833783620,
+        0.3137066458778873,
+        0.2223810344533745,
+        0.1012285362903763,
+    ];
     let mut sum = 0.0;
     for (a, b) in [(0.0, 0.5), (0.5, 1.0)] {
         let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
@@ -158,7 +200,13 @@ impl CrossSection for BezierLoop {
                     continue;
                 }
                 let dy = deriv(piece, s).y;
-                winding += if dy > 0.0 { 1 } else if dy < 0.0 { -1 } else { 0 };
+                winding += if dy > 0.0 {
+                    1
+                } else if dy < 0.0 {
+                    -1
+                } else {
+                    0
+                };
             }
         }
         winding != 0 || self.on_boundary(p)
@@ -194,11 +242,18 @@ impl CrossSection for BezierLoop {
             let qy = Cubic::new([c1.y, 2.0 * c2.y, 3.0 * c3.y, 0.0]);
             let cross_poly = inflection_poly(c1, c2, c3);
             for poly in [qx, qy, cross_poly] {
-                ss.extend(poly.roots_between(0.0, 1.0, S_TOL).into_iter().filter(|&s| s > 1e-12 && s < 1.0 - 1e-12));
+                ss.extend(
+                    poly.roots_between(0.0, 1.0, S_TOL)
+                        .into_iter()
+                        .filter(|&s| s > 1e-12 && s < 1.0 - 1e-12),
+                );
             }
             ss.sort_by(f64::total_cmp);
             ss.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
-            breaks.extend(ss.into_iter().map(|s| (i as f64 + s) / self.pieces.len() as f64 * TAU));
+            breaks.extend(
+                ss.into_iter()
+                    .map(|s| (i as f64 + s) / self.pieces.len() as f64 * TAU),
+            );
         }
         breaks.push(TAU);
         breaks
@@ -213,7 +268,12 @@ impl CrossSection for BezierLoop {
 /// `B' = c1 + 2 c2 s + 3 c3 s^2`, `B'' = 2 c2 + 6 c3 s`, so
 /// `B' x B'' = 2 (c1 x c2) + 6 (c1 x c3) s + 6 (c2 x c3) s^2` (the `s^3` terms cancel).
 fn inflection_poly(c1: DVec2, c2: DVec2, c3: DVec2) -> Cubic {
-    Cubic::new([2.0 * cross(c1, c2), 6.0 * cross(c1, c3), 6.0 * cross(c2, c3), 0.0])
+    Cubic::new([
+        2.0 * cross(c1, c2),
+        6.0 * cross(c1, c3),
+        6.0 * cross(c2, c3),
+        0.0,
+    ])
 }
 
 impl BezierLoop {
@@ -234,7 +294,11 @@ mod tests {
         for i in 0..400 {
             let v = i as f64 / 400.0 * TAU;
             let r = c.point(v).length();
-            assert!((r - 1.0).abs() < 2.8e-4, "radial error {} at v={v}", r - 1.0);
+            assert!(
+                (r - 1.0).abs() < 2.8e-4,
+                "radial error {} at v={v}",
+                r - 1.0
+            );
             // Derivative against a central difference.
             let h = 1e-6;
             let fd = (c.point(v + h) - c.point(v - h)) / (2.0 * h);
@@ -242,15 +306,29 @@ mod tests {
                 assert!((fd - c.derivative(v)).length() < 1e-6, "derivative at {v}");
             }
         }
-        assert!(c.contains(DVec2::new(0.5, 0.5)) && !c.contains(DVec2::new(0.8, 0.8)), "inside test");
-        assert!(c.contains(DVec2::ZERO) && !c.contains(DVec2::new(1.1, 0.0)), "inside test");
-        assert_eq!(c.monotone_breaks().len(), 5, "quarter arcs are monotone and convex");
+        assert!(
+            c.contains(DVec2::new(0.5, 0.5)) && !c.contains(DVec2::new(0.8, 0.8)),
+            "inside test"
+        );
+        assert!(
+            c.contains(DVec2::ZERO) && !c.contains(DVec2::new(1.1, 0.0)),
+            "inside test"
+        );
+        assert_eq!(
+            c.monotone_breaks().len(),
+            5,
+            "quarter arcs are monotone and convex"
+        );
     }
 
     #[test]
     fn clockwise_loops_report_their_orientation_and_bad_input_is_rejected() {
         let ccw = BezierLoop::circle_approximation();
-        let mut pts: Vec<DVec2> = ccw.pieces().iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let mut pts: Vec<DVec2> = ccw
+            .pieces()
+            .iter()
+            .flat_map(|p| [p[0], p[1], p[2]])
+            .collect();
         // Reverse: anchors in reverse order, each piece's controls swapped.
         let k = pts.len() / 3;
         let rev: Vec<DVec2> = (0..k)
@@ -262,13 +340,20 @@ mod tests {
             .collect();
         let cw = BezierLoop::new(&rev).expect("valid");
         assert_eq!(cw.orientation(), -1.0, "clockwise");
-        assert!(cw.contains(DVec2::new(0.3, -0.2)), "inside is inside either way");
+        assert!(
+            cw.contains(DVec2::new(0.3, -0.2)),
+            "inside is inside either way"
+        );
         pts.pop();
         assert_eq!(BezierLoop::new(&pts), Err(ProfileError::Count(11)), "count");
         let flat = [DVec2::ZERO, DVec2::X, DVec2::new(2.0, 0.0)];
         assert_eq!(BezierLoop::new(&flat), Err(ProfileError::NoArea), "no area");
         let nan = [DVec2::ZERO, DVec2::new(f64::NAN, 0.0), DVec2::Y];
-        assert_eq!(BezierLoop::new(&nan), Err(ProfileError::NotFinite(1)), "nan");
+        assert_eq!(
+            BezierLoop::new(&nan),
+            Err(ProfileError::NotFinite(1)),
+            "nan"
+        );
     }
 
     #[test]
@@ -278,7 +363,10 @@ mod tests {
         let hits = c.intersect_line(p, d);
         assert_eq!(hits.len(), 2, "secant: {hits:?}");
         for (s, v) in hits {
-            assert!((c.point(v) - (p + s * d)).length() < 1e-12, "crossing {s} {v}");
+            assert!(
+                (c.point(v) - (p + s * d)).length() < 1e-12,
+                "crossing {s} {v}"
+            );
         }
     }
 }

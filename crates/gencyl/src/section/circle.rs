@@ -24,7 +24,11 @@ impl CrossSection for UnitCircle {
     /// `|p + s dir|^2 = 1`: `|dir|^2 s^2 + 2 (p.dir) s + |p|^2 - 1 = 0`.
     fn intersect_line(&self, p: DVec2, dir: DVec2) -> LineCrossings {
         let mut out = LineCrossings::new();
-        for s in crate::roots::quadratic_roots(dir.length_squared(), 2.0 * p.dot(dir), p.length_squared() - 1.0) {
+        for s in crate::roots::quadratic_roots(
+            dir.length_squared(),
+            2.0 * p.dot(dir),
+            p.length_squared() - 1.0,
+        ) {
             let q = p + s * dir;
             out.push((s, angle(q)));
         }
@@ -65,9 +69,15 @@ mod tests {
         for (s, v) in hits {
             let q = DVec2::new(-2.0, 0.5) + s * DVec2::new(3.0, 0.1);
             assert!((q.length() - 1.0).abs() < 1e-14, "crossing off the circle");
-            assert!((c.point(v) - q).length() < 1e-14, "v does not name the crossing");
+            assert!(
+                (c.point(v) - q).length() < 1e-14,
+                "v does not name the crossing"
+            );
             assert!((0.0..TAU).contains(&v), "v in [0, 2pi)");
         }
-        assert!(c.intersect_line(DVec2::new(0.0, 2.0), DVec2::X).is_empty(), "a line that misses");
+        assert!(
+            c.intersect_line(DVec2::new(0.0, 2.0), DVec2::X).is_empty(),
+            "a line that misses"
+        );
     }
 }

@@ -1,0 +1,377 @@
+//! End-to-end tests of the `gencyl` binary: `gencyl raycast` against interface.md section 3.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+use gencyl_render::synth::{FiberParams, random_fibers, random_rays, rays_csv, scene_toml};
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+}
+
+/// A scratch file under the target directory, unique to `name`.
+fn scratch(name: &str, contents: &[u8]) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, contents).unwrap();
+    p
+}
+
+/// Runs `gencyl` with `args`, feeding `stdin` if given.
+fn gencyl(args: &[&str], stdin: Option<&[u8]>) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gencyl"))
+        .args(args)
+        .stdin(if stdin.is_some() {
+            Stdio::piped()
+        } else {
+            Stdio::null()
+        })
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("gencyl runs");
+    if let Some(input) = stdin {
+        let mut pipe = child.stdin.take().unwrap();
+        let input = input.to_vec();
+        // Write from a thread so a large input cannot deadlock against a full stdout pipe.
+        std::thread::spawn(move || {
+            let _ = pipe.write_all(&input);
+        });
+    }
+    child.wait_with_output().expect("gencyl finishes")
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Runs a command that must succeed; returns standard output.
+fn ok(args: &[&str], stdin: Option<&[u8]>) -> String {
+    let out = gencyl(args, stdin);
+    assert!(
+        out.status.success(),
+        "gencyl {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("UTF-8 output")
+}
+
+/// The rows of a hit CSV as numbers (`None` for `*`), after checking the header.
+fn rows(csv: &str) -> Vec<Vec<Option<f64>>> {
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("ray,t,u,v,nx,ny,nz,object,part"),
+        "header of {csv}"
+    );
+    lines
+        .map(|l| {
+            let r: Vec<Option<f64>> = l
+                .split(',')
+                .map(|x| {
+                    if x == "*" {
+                        None
+                    } else {
+                        Some(x.parse().expect("a number"))
+                    }
+                })
+                .collect();
+            assert_eq!(r.len(), 9, "row {l}");
+            r
+        })
+        .collect()
+}
+
+/// Compares rows: integers exactly, floats to 1e-9 (the example's values are exact; the
+/// solver is accurate to a few ulps), `*` in `want` matching anything.
+fn assert_rows(got: &str, want: &str) {
+    let (g, w) = (rows(got), rows(want));
+    assert_eq!(g.len(), w.len(), "row count\n got:\n{got}\nwant:\n{want}");
+    for (gr, wr) in g.iter().zip(&w) {
+        for (i, (x, y)) in gr.iter().zip(wr).enumerate() {
+            if let (Some(x), Some(y)) = (x, y) {
+                let tol = if [0, 7, 8].contains(&i) { 0.0 } else { 1e-9 };
+                assert!(
+                    (x - y).abs() <= tol,
+                    "column {i}: {x} vs {y}\n got:\n{got}\nwant:\n{want}"
+                );
+            }
+        }
+    }
+}
+
+fn straight() -> (PathBuf, PathBuf) {
+    (
+        data("straight-cylinder.toml"),
+        data("straight-cylinder.rays.csv"),
+    )
+}
+
+#[test]
+fn straight_cylinder_matches_expected() {
+    let (scene, rays) = straight();
+    let got = ok(&["raycast", path(&scene), path(&rays)], None);
+    let want = std::fs::read_to_string(data("straight-cylinder.expected.csv")).unwrap();
+    assert_rows(&got, &want);
+    // v is in [0, 2 pi) and normals are unit length.
+    for r in rows(&got) {
+        let v = r[3].unwrap();
+        assert!((0.0..std::f64::consts::TAU).contains(&v), "v = {v}");
+        let n = (r[4].unwrap().powi(2) + r[5].unwrap().powi(2) + r[6].unwrap().powi(2)).sqrt();
+        assert!((n - 1.0).abs() < 1e-12, "|n| = {n}");
+    }
+}
+
+#[test]
+fn all_gives_entry_and_exit_sorted_by_t() {
+    let (scene, rays) = straight();
+    let got = ok(&["raycast", "--all", path(&scene), path(&rays)], None);
+    // Ray 0 enters the side at z = 0.1 and leaves at z = -0.1; ray 2 enters the start cap and
+    // leaves through the end cap; ray 3 starts inside; ray 4 crosses the side twice.
+    let want = "ray,t,u,v,nx,ny,nz,object,part\n\
+        0,0.9,0.5,*,0,0,1,0,0\n\
+        0,1.1,0.5,*,0,0,-1,0,0\n\
+        2,1,0,*,-1,0,0,0,1\n\
+        2,4,1,*,1,0,0,0,2\n\
+        3,1.5,1,*,1,0,0,0,2\n\
+        4,0.45,0.65,*,0,0,1,0,0\n\
+        4,0.55,0.683333333333333333,*,0,0,-1,0,0\n";
+    assert_rows(&got, want);
+    let r = rows(&got);
+    for w in r.windows(2) {
+        if w[0][0] == w[1][0] {
+            assert!(w[0][1] < w[1][1], "rows of a ray sorted by t: {w:?}");
+        }
+    }
+}
+
+#[test]
+fn tmin_drops_nearer_hits() {
+    let (scene, rays) = straight();
+    let got = ok(
+        &["raycast", "--tmin", "1.0", path(&scene), path(&rays)],
+        None,
+    );
+    // t > tmin strictly: ray 2's cap hit at exactly t = 1 no longer counts.
+    let want = "ray,t,u,v,nx,ny,nz,object,part\n\
+        0,1.1,0.5,*,0,0,-1,0,0\n\
+        2,4,1,*,1,0,0,0,2\n\
+        3,1.5,1,*,1,0,0,0,2\n";
+    assert_rows(&got, want);
+    // A negative tmin sees behind the origin: ray 3 left the start cap at t = -1.5.
+    let got = ok(
+        &["raycast", "--tmin", "-10", path(&scene), path(&rays)],
+        None,
+    );
+    let r = rows(&got);
+    let ray3 = r.iter().find(|r| r[0] == Some(3.0)).unwrap();
+    assert_eq!((ray3[1], ray3[8]), (Some(-1.5), Some(1.0)), "{got}");
+    let got2 = ok(&["raycast", "--tmin=-10", path(&scene), path(&rays)], None);
+    assert_eq!(got, got2, "--tmin=-10 and --tmin -10");
+}
+
+#[test]
+fn dash_reads_standard_input() {
+    let (scene, rays) = straight();
+    let text = std::fs::read(&rays).unwrap();
+    let from_file = ok(&["raycast", path(&scene), path(&rays)], None);
+    let from_stdin = ok(&["raycast", path(&scene), "-"], Some(&text));
+    assert_eq!(from_file, from_stdin, "file and stdin");
+}
+
+#[test]
+fn empty_scene_and_empty_rays() {
+    let (scene, rays) = straight();
+    let empty = scratch("empty.toml", b"");
+    assert_eq!(
+        ok(&["raycast", path(&empty), path(&rays)], None),
+        "ray,t,u,v,nx,ny,nz,object,part\n",
+        "no cylinder"
+    );
+    let no_rays = scratch("empty.csv", b"# nothing\n\n");
+    assert_eq!(
+        ok(&["raycast", path(&scene), path(&no_rays)], None),
+        "ray,t,u,v,nx,ny,nz,object,part\n",
+        "no ray"
+    );
+}
+
+#[test]
+fn thread_counts_give_identical_output() {
+    let params = FiberParams {
+        count: 200,
+        elliptical_fraction: 0.05,
+        ..FiberParams::default()
+    };
+    let scene = scratch(
+        "random200.toml",
+        scene_toml(&random_fibers(&params, 42)).as_bytes(),
+    );
+    let rays = scratch(
+        "random2000.csv",
+        rays_csv(&random_rays(2000, 43, &params)).as_bytes(),
+    );
+    for all in [false, true] {
+        let mut args = vec!["raycast", path(&scene), path(&rays)];
+        if all {
+            args.push("--all");
+        }
+        let one = ok(&[&args[..], &["--threads", "1"]].concat(), None);
+        let two = ok(&[&args[..], &["--threads", "2"]].concat(), None);
+        let default = ok(&args, None);
+        assert_eq!(one, two, "--threads 1 vs 2 (all = {all})");
+        assert_eq!(one, default, "--threads 1 vs default (all = {all})");
+        let n = rows(&one).len();
+        assert!(n > 300, "a meaningful number of hits: {n} (all = {all})");
+        // Rows in ray order, and with --all, by t within a ray.
+        let r = rows(&one);
+        for w in r.windows(2) {
+            assert!(
+                w[0][0] < w[1][0] || (all && w[0][0] == w[1][0] && w[0][1] <= w[1][1]),
+                "order: {w:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn many_rays_stream() {
+    // 200,000 rays through standard input.
+    let (scene, _) = straight();
+    let mut text = String::from("ox,oy,oz,dx,dy,dz\n");
+    for i in 0..200_000 {
+        let x = (i % 1000) as f64 * 0.003;
+        text.push_str(&format!("{x},0,1,0,0,-1\n"));
+    }
+    let got = ok(&["raycast", path(&scene), "-"], Some(text.as_bytes()));
+    // x in [0, 3) always hits the side at t = 0.9.
+    assert_eq!(got.lines().count(), 200_001, "one row per ray");
+    assert!(
+        got.lines().nth(200_000).unwrap().starts_with("199999,0.9,"),
+        "last row"
+    );
+}
+
+/// Runs a command that must fail without output; returns its message.
+fn fails(args: &[&str], stdin: Option<&[u8]>) -> String {
+    let out = gencyl(args, stdin);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        !out.status.success(),
+        "gencyl {args:?} succeeded; stdout: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(
+        out.stdout.is_empty(),
+        "gencyl {args:?} wrote to stdout: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(!err.contains("panicked"), "gencyl {args:?} panicked: {err}");
+    err
+}
+
+const AXIS: &str = "bezier = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]]";
+
+#[test]
+fn bad_scenes_name_file_and_line() {
+    let (_, rays) = straight();
+    let cases: &[(&str, String, &str)] = &[
+        ("unknown-key", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1]\ncolour = \"red\"\n"), ":4:1: unknown field `colour`"),
+        ("unknown-table", "[camera]\nfov = 40\n".to_string(), ":1:2: unknown field `camera`"),
+        ("three-radii", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1, 0.1]\n"), ":3:16: invalid length 3"),
+        ("five-points", "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0],[4,0,0]]\nmajor_radius = [0.1, 0.1]\n".to_string(), ":2:10: invalid length 5"),
+        ("string-radius", format!("[[cylinder]]\n{AXIS}\nmajor_radius = \"thin\"\n"), ":3:16: invalid type: string"),
+        ("nan-radius", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [nan, 0.1]\n"), ":3:16: major_radius must be finite, got [NaN, 0.1]"),
+        ("zero-radius", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.0, 0.03]\n"), ":3:16: major_radius must be positive at both ends, got [0.0, 0.03]"),
+        ("inf-point", "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,inf],[3,0,0]]\nmajor_radius = [0.1, 0.1]\n".to_string(), ":2:10: bezier control point 2 is not finite"),
+        ("zero-length", "[[cylinder]]\nbezier = [[1,2,3],[1,2,3],[1,2,3],[1,2,3]]\nmajor_radius = [0.1, 0.1]\n".to_string(), ":2:10: the axis has zero length"),
+        ("cusp", "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[0,0,0],[1,0,0]]\nmajor_radius = [0.1, 0.1]\n".to_string(), ":2:10: the axis has a cusp"),
+        ("bad-profile-count", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1]\nprofile = [[1, 0], [0, 1]]\n"), ":4:11: bad profile: a profile needs 3k points"),
+        ("bad-profile-area", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1]\nprofile = [[1, 0], [2, 0], [3, 0]]\n"), ":4:11: bad profile: the profile encloses no area"),
+        ("syntax", "[[cylinder]\n".to_string(), ":1:12:"),
+        ("second-cylinder", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1]\n\n[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, -1]\n"), ":7:16: major_radius must be positive at both ends, got [0.1, -1.0] (cylinder 1)"),
+    ];
+    for (name, src, want) in cases {
+        let file = format!("{name}.toml");
+        let scene = scratch(&file, src.as_bytes());
+        let err = fails(&["raycast", path(&scene), path(&rays)], None);
+        let want = format!("{file}{want}");
+        assert!(
+            err.contains(&want),
+            "{name}: message\n{err}\nshould contain\n{want}"
+        );
+    }
+    // Bytes that are not text, and a file that is not there.
+    let scene = scratch("garbage.toml", &[0x5b, 0xff, 0xfe, 0x00, 0x80, 0x0a]);
+    let err = fails(&["raycast", path(&scene), path(&rays)], None);
+    assert!(
+        err.contains("garbage.toml:1:2: the file is not valid UTF-8 text"),
+        "{err}"
+    );
+    let err = fails(&["raycast", "no-such-scene.toml", path(&rays)], None);
+    assert!(err.contains("no-such-scene.toml: cannot read"), "{err}");
+}
+
+#[test]
+fn bad_rays_name_file_and_line_and_write_nothing() {
+    let (scene, _) = straight();
+    let good = "ox,oy,oz,dx,dy,dz\n1.5,0,1,0,0,-1\n".repeat(3);
+    let cases: &[(&str, &str, &str)] = &[
+        ("five", "1,2,3,4,5\n", ":7: expected 6 numbers, found 5"),
+        ("nan", "1,2,3,4,5,NaN\n", ":7: dz is not finite (NaN)"),
+        ("inf", "1,2,3,4,1e999,6\n", ":7: dy is not finite (inf)"),
+        (
+            "zero-dir",
+            "1,2,3,0,0,0\n",
+            ":7: the direction (dx, dy, dz) is zero",
+        ),
+        ("word", "1,2,3,4,five,6\n", ":7: dy is not a number"),
+        ("empty-field", "1,2,3,4,,6\n", ":7: dy is missing"),
+    ];
+    for (name, line, want) in cases {
+        let text = format!("{good}{line}1.5,0,1,0,0,-1\n");
+        let file = format!("{name}.csv");
+        let rays = scratch(&file, text.as_bytes());
+        let err = fails(&["raycast", path(&scene), path(&rays)], None);
+        assert!(err.contains(&format!("{file}{want}")), "{name}: {err}");
+        // The same from standard input.
+        let err = fails(&["raycast", path(&scene), "-"], Some(text.as_bytes()));
+        assert!(
+            err.contains(&format!("<stdin>{want}")),
+            "{name} on stdin: {err}"
+        );
+    }
+    let rays = scratch("binary.csv", &[b'1', b',', 0xff, 0xfe, b'\n']);
+    let err = fails(&["raycast", path(&scene), path(&rays)], None);
+    assert!(
+        err.contains("binary.csv:1: the line is not valid UTF-8 text"),
+        "{err}"
+    );
+    let err = fails(&["raycast", path(&scene), "no-such-rays.csv"], None);
+    assert!(err.contains("no-such-rays.csv: cannot read"), "{err}");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let err = fails(&["raycast", path(&scene), path(dir)], None);
+    assert!(err.contains("cannot read"), "{err}");
+}
+
+#[test]
+fn bad_arguments() {
+    let (scene, rays) = straight();
+    for args in [
+        vec!["raycast", path(&scene)],
+        vec!["raycast", "--threads", "0", path(&scene), path(&rays)],
+        vec!["raycast", "--tmin", "nan", path(&scene), path(&rays)],
+        vec!["raycast", "--tmin", "x", path(&scene), path(&rays)],
+        vec!["frobnicate"],
+    ] {
+        fails(&args, None);
+    }
+    assert!(
+        ok(&["raycast", "--help"], None).contains("--threads"),
+        "help"
+    );
+}

@@ -1,0 +1,431 @@
+//! A cheap ray-space test that rejects most cylinders a ray misses before the exact solver.
+//!
+//! Cylinders enter the BVH as [`Piece`]s of their axis, each with a tight box
+//! ([`piece_bounds`]); a ray that reaches a piece's box is then tested against the piece here.
+//!
+//! Project along the ray onto the plane perpendicular to it, with the ray's origin at `0`:
+//! the ray is the point `0`, and the distance from a point `x` to the ray's line is
+//! `|proj(x)|`. The solid lies within `R` ([`reach`]) of its axis
+//! curve (side and caps alike), and the curve within the convex hull of its control points,
+//! so a hit `x` near `a(u)` gives `|proj(a(u))| <= |x - a(u)| <= R`: the projected hull comes
+//! within `R` of `0`. If it does not, the ray misses. Likewise along the ray: a hit's depth
+//! `z = t |d|` lies within `R` of the hull's depths, which must meet `(tmin, tmax)`. The whole
+//! curve's hull is checked first; if that does not settle it, the halves' hulls (de Casteljau
+//! at `u = 1/2`), which hug the curve closer, recursively a few times.
+
+use std::ops::{Add, Mul};
+
+use gencyl::{Aabb, CrossSection, GeneralizedCylinder, Ray, SweepRule};
+use glam::{DVec2, DVec3};
+
+/// How many times the curve is halved at most, for BVH pieces and the hull test alike.
+pub const MAX_LEVEL: u32 = 3;
+
+/// A piece of a cylinder's axis, `u in [j / 2^l, (j + 1) / 2^l]`, named by its heap index
+/// `2^l + j` (`1` is the whole axis, `2` and `3` its halves, ...), `l <= MAX_LEVEL`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Piece(pub u32);
+
+impl Piece {
+    /// The whole axis.
+    pub const WHOLE: Piece = Piece(1);
+
+    /// How many halvings deep: `l`.
+    pub fn level(self) -> u32 {
+        31 - self.0.leading_zeros()
+    }
+
+    /// The piece's `u` range.
+    pub fn range(self) -> (f64, f64) {
+        let l = self.level();
+        let j = self.0 - (1 << l);
+        let w = 1.0 / (1u32 << l) as f64;
+        (j as f64 * w, (j + 1) as f64 * w)
+    }
+
+    /// The pieces of level `l`, in order.
+    pub fn level_pieces(l: u32) -> impl Iterator<Item = Piece> {
+        ((1u32 << l)..(2u32 << l)).map(Piece)
+    }
+
+    /// The control points of the piece of the cubic Bezier curve with control points `q`:
+    /// halving (de Casteljau at `1/2`, exact up to rounding) down the piece's path.
+    pub fn sub_bezier<T: Copy + Add<Output = T> + Mul<f64, Output = T>>(
+        self,
+        mut q: [T; 4],
+    ) -> [T; 4] {
+        for bit in (0..self.level()).rev() {
+            let [a, b] = halves(&q);
+            q = if self.0 >> bit & 1 == 0 { a } else { b };
+        }
+        q
+    }
+}
+
+/// The two halves of a cubic Bezier curve (de Casteljau at `u = 1/2`).
+#[inline]
+fn halves<T: Copy + Add<Output = T> + Mul<f64, Output = T>>(q: &[T; 4]) -> [[T; 4]; 2] {
+    let m01 = (q[0] + q[1]) * 0.5;
+    let m12 = (q[1] + q[2]) * 0.5;
+    let m23 = (q[2] + q[3]) * 0.5;
+    let a = (m01 + m12) * 0.5;
+    let b = (m12 + m23) * 0.5;
+    let mid = (a + b) * 0.5;
+    [[q[0], m01, a, mid], [mid, b, m23, q[3]]]
+}
+
+/// `R`: the solid lies within this distance of its axis curve, the rule's largest stretch
+/// times the section's `bounding_radius`
+/// (the surface point is `a(u)` plus an offset of at most that length in the normal plane;
+/// caps are sections too).
+pub fn reach(c: &GeneralizedCylinder) -> f64 {
+    reach_on(c, Piece::WHOLE)
+}
+
+/// [`reach`] over a piece of the axis: the rule's stretch is bounded by a linear function of
+/// `u` ([`SweepRule::scale_bound`]), so its larger end value on the piece bounds it there.
+pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
+    let [l0, l1] = c.sweep().scale_bound();
+    let (u0, u1) = piece.range();
+    let l = (l0 + (l1 - l0) * u0).max(l0 + (l1 - l0) * u1);
+    l * c.section().bounding_radius()
+}
+
+/// How finely to cut a cylinder into BVH pieces: about one piece per 8 radii of control
+/// polygon length, as a level `l` (`2^l` pieces), at most [`MAX_LEVEL`].
+pub fn level_for(c: &GeneralizedCylinder) -> u32 {
+    let p = c.axis().points;
+    let length = (0..3).map(|i| (p[i + 1] - p[i]).length()).sum::<f64>();
+    let pieces = length / (8.0 * reach(c));
+    (0..=MAX_LEVEL)
+        .find(|&l| (1u32 << l) as f64 >= pieces)
+        .unwrap_or(MAX_LEVEL)
+}
+
+/// A tight box of a piece of a cylinder: the piece of the axis curve's exact box (from the
+/// roots of `a'`), grown by [`reach`]. Never looser than the cylinder's own
+/// [`GeneralizedCylinder::bounds`], which grows the control points' box.
+pub fn piece_bounds(c: &GeneralizedCylinder, piece: Piece) -> Aabb {
+    let p = piece.sub_bezier(c.axis().points);
+    let mut lo = p[0].min(p[3]);
+    let mut hi = p[0].max(p[3]);
+    // a'(u)_k is the Bernstein quadratic 3 (h0 (1-u)^2 + 2 h1 u (1-u) + h2 u^2).
+    let h = [p[1] - p[0], p[2] - p[1], p[3] - p[2]];
+    for k in 0..3 {
+        let (h0, h1, h2) = (h[0][k], h[1][k], h[2][k]);
+        let a = h0 - 2.0 * h1 + h2;
+        let b = 2.0 * (h1 - h0);
+        let mut roots = [f64::NAN; 2];
+        if a.abs() <= 1e-12 * (h0.abs() + h1.abs() + h2.abs()) {
+            if b != 0.0 {
+                roots[0] = -h0 / b;
+            }
+        } else {
+            let disc = b * b - 4.0 * a * h0;
+            if disc >= 0.0 {
+                let q = -0.5 * (b + b.signum() * disc.sqrt());
+                roots = [q / a, if q != 0.0 { h0 / q } else { f64::NAN }];
+            }
+        }
+        for u in roots {
+            if u > 0.0 && u < 1.0 {
+                let v = 1.0 - u;
+                let x = v * v * v * p[0][k]
+                    + 3.0 * u * v * (v * p[1][k] + u * p[2][k])
+                    + u * u * u * p[3][k];
+                lo[k] = lo[k].min(x);
+                hi[k] = hi[k].max(x);
+            }
+        }
+    }
+    // Pad for rounding in the halving and the evaluation (relative to the coordinates).
+    let pad = reach_on(c, piece)
+        + 1e-12 * (hi - lo).max_element()
+        + 64.0 * f64::EPSILON * lo.abs().max(hi.abs()).max_element();
+    let own = c.bounds();
+    Aabb {
+        min: (lo - DVec3::splat(pad)).max(own.min),
+        max: (hi + DVec3::splat(pad)).min(own.max),
+    }
+}
+
+/// A ray's frame for projecting: its origin, the unit direction and two unit vectors
+/// perpendicular to it.
+#[derive(Clone, Copy, Debug)]
+pub struct RaySpace {
+    origin: DVec3,
+    e0: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    /// `|d|`: the distance along the ray per unit of `t`.
+    len: f64,
+}
+
+impl RaySpace {
+    /// The frame of `ray` (whose direction must be finite and non-zero).
+    pub fn new(ray: &Ray) -> Self {
+        let len = ray.dir.length();
+        let e0 = ray.dir.normalize_or(DVec3::Z);
+        let (e1, e2) = e0.any_orthonormal_pair();
+        RaySpace {
+            origin: ray.origin,
+            e0,
+            e1,
+            e2,
+            len,
+        }
+    }
+
+    /// `(x, y)` across the ray, `z` the distance along it.
+    #[inline]
+    fn project(&self, p: DVec3) -> DVec3 {
+        let q = p - self.origin;
+        DVec3::new(q.dot(self.e1), q.dot(self.e2), q.dot(self.e0))
+    }
+
+    /// Whether the ray may hit the cylinder with `tmin < t < tmax`: `false` means it surely
+    /// does not.
+    pub fn may_hit(&self, c: &GeneralizedCylinder, tmin: f64, tmax: f64) -> bool {
+        self.may_hit_piece(c, Piece::WHOLE, tmin, tmax)
+    }
+
+    /// Whether the ray may hit the part of the cylinder within [`reach`] of the axis piece
+    /// with `tmin < t < tmax`: `false` means it surely does not.
+    pub fn may_hit_piece(
+        &self,
+        c: &GeneralizedCylinder,
+        piece: Piece,
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
+        let p = c.axis().points;
+        let q = piece.sub_bezier(p.map(|x| self.project(x)));
+        // Rounding of the projection is about eps |p - o| per coordinate: widen by far more.
+        let size = p
+            .iter()
+            .fold(0.0f64, |m, x| m.max((*x - self.origin).abs().max_element()));
+        let reach = reach_on(c, piece) * (1.0 + 1e-9) + 1e-9 * size;
+        // A hit x within R of a(u) has z(x) within R of z(a(u)), and t = z(x) / |d|.
+        let (zmin, zmax) = (tmin * self.len, tmax * self.len);
+        let zmin = zmin - reach - 1e-9 * zmin.abs();
+        let zmax = zmax + reach + 1e-9 * zmax.abs();
+        piece_may_hit(
+            &q,
+            reach,
+            zmin,
+            zmax,
+            MAX_LEVEL.saturating_sub(piece.level()),
+        )
+    }
+}
+
+/// Whether the ray (the origin of the projection, between depths `zmin` and `zmax`) comes
+/// within `reach` of the hull of the projected Bezier points `q`, or of one of its halves'
+/// hulls, recursively `depth` times.
+fn piece_may_hit(q: &[DVec3; 4], reach: f64, zmin: f64, zmax: f64, depth: u32) -> bool {
+    let (lo, hi) = q
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.z), hi.max(p.z))
+        });
+    if lo > zmax || hi < zmin {
+        return false;
+    }
+    if !within(&q.map(|p| p.truncate()), reach) {
+        return false;
+    }
+    if depth == 0 {
+        return true;
+    }
+    let [a, b] = halves(q);
+    piece_may_hit(&a, reach, zmin, zmax, depth - 1)
+        || piece_may_hit(&b, reach, zmin, zmax, depth - 1)
+}
+
+/// Whether the convex hull of `q` comes within `reach` of the origin.
+#[inline]
+fn within(q: &[DVec2; 4], reach: f64) -> bool {
+    let r2 = reach * reach;
+    // Quick accept: a point within reach.
+    if q.iter().any(|p| p.length_squared() <= r2) {
+        return true;
+    }
+    // Quick reject: all points beyond reach on one side of an axis.
+    if q.iter().all(|p| p.x > reach) || q.iter().all(|p| p.x < -reach) {
+        return false;
+    }
+    if q.iter().all(|p| p.y > reach) || q.iter().all(|p| p.y < -reach) {
+        return false;
+    }
+    // The hull is the union of the four triangles of the points; outside it, the nearest
+    // hull point lies on one of the six segments between the points.
+    const TRIS: [[usize; 3]; 4] = [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]];
+    if TRIS.iter().any(|t| in_triangle(q[t[0]], q[t[1]], q[t[2]])) {
+        return true;
+    }
+    const SEGS: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
+    SEGS.iter()
+        .any(|s| segment_distance2(q[s[0]], q[s[1]]) <= r2)
+}
+
+/// Whether the origin lies in the closed triangle `a b c` (of either orientation).
+#[inline]
+fn in_triangle(a: DVec2, b: DVec2, c: DVec2) -> bool {
+    let (s1, s2, s3) = (a.perp_dot(b), b.perp_dot(c), c.perp_dot(a));
+    (s1 >= 0.0 && s2 >= 0.0 && s3 >= 0.0) || (s1 <= 0.0 && s2 <= 0.0 && s3 <= 0.0)
+}
+
+/// The squared distance from the origin to the segment `a b`.
+#[inline]
+fn segment_distance2(a: DVec2, b: DVec2) -> f64 {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    let s = if len2 > 0.0 {
+        (-a.dot(ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + s * ab).length_squared()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::{FiberParams, Rng, random_fibers};
+
+    #[test]
+    fn never_rejects_a_ray_through_the_surface() {
+        // Planted answers: rays through surface points from random directions.
+        let specs = random_fibers(
+            &FiberParams {
+                count: 40,
+                elliptical_fraction: 0.4,
+                profile_fraction: 0.3,
+                ..Default::default()
+            },
+            4,
+        );
+        let mut rng = Rng::new(8);
+        let mut rejected_misses = 0;
+        for spec in &specs {
+            let c = spec.build().unwrap();
+            for _ in 0..200 {
+                let p = c.surface_point(rng.f64(), rng.range(0.0, std::f64::consts::TAU));
+                let d = rng.unit_vector() * rng.range(0.1, 10.0);
+                let ray = Ray::new(p - rng.range(-3.0, 3.0) * d, d);
+                assert!(
+                    RaySpace::new(&ray).may_hit(&c, f64::NEG_INFINITY, f64::INFINITY),
+                    "rejected {ray:?} through {p} of {spec:?}"
+                );
+                // The parallel ray offset far to the side misses.
+                let side = d.any_orthonormal_vector() * 0.5;
+                if !RaySpace::new(&Ray::new(ray.origin + side, d)).may_hit(
+                    &c,
+                    f64::NEG_INFINITY,
+                    f64::INFINITY,
+                ) {
+                    rejected_misses += 1;
+                }
+            }
+        }
+        assert!(
+            rejected_misses > 2000,
+            "the cull should reject most far misses: {rejected_misses} of 8000"
+        );
+    }
+
+    #[test]
+    fn pieces_cover_the_axis() {
+        assert_eq!(Piece(1).range(), (0.0, 1.0), "whole");
+        assert_eq!(Piece(3).range(), (0.5, 1.0), "second half");
+        assert_eq!(Piece(13).range(), (0.625, 0.75), "level 3, j = 5");
+        let q = [
+            DVec3::ZERO,
+            DVec3::new(1.0, 2.0, 0.0),
+            DVec3::new(2.0, -1.0, 1.0),
+            DVec3::new(3.0, 0.0, 0.0),
+        ];
+        let c = gencyl::CubicBezier::new(q);
+        for l in 0..=MAX_LEVEL {
+            for piece in Piece::level_pieces(l) {
+                let (u0, u1) = piece.range();
+                let sub = gencyl::CubicBezier::new(piece.sub_bezier(q));
+                for i in 0..=4 {
+                    let s = i as f64 / 4.0;
+                    let d = (sub.point(s) - c.point(u0 + s * (u1 - u0))).length();
+                    assert!(d < 1e-14, "piece {piece:?} at {s}: {d}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn piece_bounds_hold_the_surface() {
+        let fibers = random_fibers(
+            &FiberParams {
+                count: 50,
+                elliptical_fraction: 0.4,
+                profile_fraction: 0.3,
+                ..FiberParams::default()
+            },
+            3,
+        );
+        for spec in fibers {
+            let c = spec.build().unwrap();
+            for l in 0..=MAX_LEVEL {
+                for piece in Piece::level_pieces(l) {
+                    let b = piece_bounds(&c, piece);
+                    let own = c.bounds();
+                    assert!(
+                        b.min.cmpge(own.min).all() && b.max.cmple(own.max).all(),
+                        "not within own box: {spec:?}"
+                    );
+                    let (u0, u1) = piece.range();
+                    for i in 0..=10 {
+                        for j in 0..16 {
+                            let u = u0 + (u1 - u0) * i as f64 / 10.0;
+                            let p = c.surface_point(u, j as f64 * std::f64::consts::TAU / 16.0);
+                            assert!(b.contains(p), "{p} outside {b:?} for {piece:?} of {spec:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn pieces_never_reject_a_ray_through_their_surface() {
+        let specs = random_fibers(
+            &FiberParams {
+                count: 20,
+                elliptical_fraction: 0.4,
+                profile_fraction: 0.3,
+                ..Default::default()
+            },
+            6,
+        );
+        let mut rng = Rng::new(9);
+        for spec in &specs {
+            let c = spec.build().unwrap();
+            for l in 0..=MAX_LEVEL {
+                for piece in Piece::level_pieces(l) {
+                    let (u0, u1) = piece.range();
+                    for _ in 0..20 {
+                        let p = c.surface_point(
+                            rng.range(u0, u1),
+                            rng.range(0.0, std::f64::consts::TAU),
+                        );
+                        let d = rng.unit_vector() * rng.range(0.1, 10.0);
+                        let t = rng.range(-3.0, 3.0);
+                        let ray = Ray::new(p - t * d, d);
+                        let space = RaySpace::new(&ray);
+                        assert!(
+                            space.may_hit_piece(&c, piece, t - 1e-9, t + 1e-9),
+                            "rejected {ray:?} at t = {t} through {p} of {piece:?} of {spec:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,246 @@
+//! Synthetic scenes and rays for tests and benchmarks: random curved fibers in a cube, rays
+//! aimed into it, and writers for the scene (TOML) and ray (CSV) file formats.
+//!
+//! Everything is seeded, so a failing case can be re-made exactly. The `random_scene` example
+//! writes such files: `cargo run --release -p gencyl-render --example random_scene -- --help`.
+
+use std::fmt::Write as _;
+
+use gencyl::{BezierLoop, FiberSpec, Ray, Section};
+use glam::{DVec2, DVec3};
+
+/// A small, fast, seeded random number generator (SplitMix64).
+#[derive(Clone, Debug)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator from a seed.
+    pub fn new(seed: u64) -> Self {
+        Rng(seed ^ 0x853c_49e6_748f_ea9b)
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub fn f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// Uniform in `[a, b)`.
+    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.f64()
+    }
+
+    /// Uniform in the box `[lo, hi)`.
+    pub fn in_box(&mut self, lo: DVec3, hi: DVec3) -> DVec3 {
+        DVec3::new(
+            self.range(lo.x, hi.x),
+            self.range(lo.y, hi.y),
+            self.range(lo.z, hi.z),
+        )
+    }
+
+    /// Uniform on the unit sphere.
+    pub fn unit_vector(&mut self) -> DVec3 {
+        let z = self.range(-1.0, 1.0);
+        let phi = self.range(0.0, std::f64::consts::TAU);
+        let s = (1.0 - z * z).sqrt();
+        DVec3::new(s * phi.cos(), s * phi.sin(), z)
+    }
+}
+
+/// What [`random_fibers`] makes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FiberParams {
+    /// How many fibers.
+    pub count: usize,
+    /// Chord length of each fiber.
+    pub length: f64,
+    /// Radius (the major radius of elliptical fibers).
+    pub radius: f64,
+    /// How far the inner control points stray from the chord, relative to `length`.
+    pub bend: f64,
+    /// Fraction of fibers with an elliptical, tapering, twisted section (the rest are round).
+    pub elliptical_fraction: f64,
+    /// Fraction of fibers with a Bezier-loop profile (a rounded, flattened square).
+    pub profile_fraction: f64,
+    /// Fibers' midpoints lie in the cube `[lo, hi]^3`.
+    pub cube: [f64; 2],
+}
+
+impl Default for FiberParams {
+    /// 1,000 round fibers of length 1 and radius 0.02 with midpoints in the unit cube.
+    fn default() -> Self {
+        FiberParams {
+            count: 1000,
+            length: 1.0,
+            radius: 0.02,
+            bend: 0.15,
+            elliptical_fraction: 0.0,
+            profile_fraction: 0.0,
+            cube: [0.0, 1.0],
+        }
+    }
+}
+
+/// Random curved fibers: a random chord of length `length` through a random midpoint, inner
+/// control points at its thirds moved by up to `bend * length` in random directions. Fibers
+/// whose axis would have a cusp are drawn again, so every spec builds.
+pub fn random_fibers(p: &FiberParams, seed: u64) -> Vec<FiberSpec> {
+    let mut rng = Rng::new(seed);
+    let (lo, hi) = (DVec3::splat(p.cube[0]), DVec3::splat(p.cube[1]));
+    let mut out = Vec::with_capacity(p.count);
+    while out.len() < p.count {
+        let mid = rng.in_box(lo, hi);
+        let dir = rng.unit_vector();
+        let p0 = mid - 0.5 * p.length * dir;
+        let p3 = mid + 0.5 * p.length * dir;
+        let p1 = p0 + p.length * (dir / 3.0 + p.bend * rng.f64() * rng.unit_vector());
+        let p2 = p0 + p.length * (2.0 * dir / 3.0 + p.bend * rng.f64() * rng.unit_vector());
+        let mut spec = FiberSpec::round([p0, p1, p2, p3], p.radius);
+        let kind = rng.f64();
+        if kind < p.elliptical_fraction {
+            spec.major_radius = [p.radius, p.radius * rng.range(0.6, 1.0)];
+            spec.minor_radius = [
+                p.radius * rng.range(0.4, 0.8),
+                p.radius * rng.range(0.4, 0.6),
+            ];
+            spec.rotation = [rng.range(0.0, 6.3), rng.range(-6.3, 6.3)];
+        } else if kind < p.elliptical_fraction + p.profile_fraction {
+            spec.section = Section::Loop(squarish_profile(rng.range(0.5, 1.0)));
+        }
+        spec.caps = rng.f64() < 0.8;
+        if spec.build().is_ok() {
+            out.push(spec);
+        }
+    }
+    out
+}
+
+/// A rounded square flattened to height `aspect`, as a four-piece Bezier loop.
+pub fn squarish_profile(aspect: f64) -> BezierLoop {
+    let pts = [
+        [1.0, -1.0],
+        [1.2, 0.0],
+        [1.0, 1.0],
+        [1.0, 1.0],
+        [0.0, 1.2],
+        [-1.0, 1.0],
+    ]
+    .iter()
+    .chain(&[
+        [-1.0, 1.0],
+        [-1.2, 0.0],
+        [-1.0, -1.0],
+        [-1.0, -1.0],
+        [0.0, -1.2],
+        [1.0, -1.0],
+    ])
+    .map(|&[x, y]| DVec2::new(x, y * aspect) / 1.2)
+    .collect::<Vec<_>>();
+    BezierLoop::new(&pts).expect("a rounded square is a valid profile")
+}
+
+/// Random rays from the sphere of radius `2 * size` about the fibers' cube's centre, aimed at
+/// uniform points of the cube; directions have random lengths in `[0.5, 2)` of the distance.
+pub fn random_rays(count: usize, seed: u64, p: &FiberParams) -> Vec<Ray> {
+    let mut rng = Rng::new(seed ^ 0x5eed);
+    let (lo, hi) = (DVec3::splat(p.cube[0]), DVec3::splat(p.cube[1]));
+    let centre = 0.5 * (lo + hi);
+    let size = (hi - lo).max_element().max(p.length);
+    (0..count)
+        .map(|_| {
+            let origin = centre + 2.0 * size * rng.unit_vector();
+            let target = rng.in_box(lo, hi);
+            Ray::new(origin, (target - origin) * rng.range(0.5, 2.0))
+        })
+        .collect()
+}
+
+/// `[x, y, z]` in TOML, every number with a decimal point or exponent.
+fn toml_vec(v: &[f64]) -> String {
+    let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
+    format!("[{}]", items.join(", "))
+}
+
+/// The scene file (`[[cylinder]]` tables) for `specs`.
+pub fn scene_toml(specs: &[FiberSpec]) -> String {
+    let mut s = String::new();
+    for f in specs {
+        let pts: Vec<String> = f.bezier.iter().map(|p| toml_vec(&p.to_array())).collect();
+        let _ = writeln!(s, "[[cylinder]]\nbezier = [{}]", pts.join(", "));
+        let _ = writeln!(s, "major_radius = {}", toml_vec(&f.major_radius));
+        if f.minor_radius != f.major_radius {
+            let _ = writeln!(s, "minor_radius = {}", toml_vec(&f.minor_radius));
+        }
+        if f.rotation != [0.0, 0.0] {
+            let _ = writeln!(s, "rotation = {}", toml_vec(&f.rotation));
+        }
+        if !f.caps {
+            let _ = writeln!(s, "caps = false");
+        }
+        if let Some(h) = f.normal_hint {
+            let _ = writeln!(s, "normal_hint = {}", toml_vec(&h.to_array()));
+        }
+        if let Section::Loop(l) = &f.section {
+            let pts: Vec<String> = l
+                .pieces()
+                .iter()
+                .flat_map(|p| &p[..3])
+                .map(|q| toml_vec(&q.to_array()))
+                .collect();
+            let _ = writeln!(s, "profile = [{}]", pts.join(", "));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The ray file for `rays`: a header line, then `ox,oy,oz,dx,dy,dz` per line.
+pub fn rays_csv(rays: &[Ray]) -> String {
+    let mut s = String::from("ox,oy,oz,dx,dy,dz\n");
+    for r in rays {
+        let (o, d) = (r.origin, r.dir);
+        let _ = writeln!(s, "{},{},{},{},{},{}", o.x, o.y, o.z, d.x, d.y, d.z);
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::SceneDescription;
+
+    #[test]
+    fn written_scene_reads_back() {
+        let p = FiberParams {
+            count: 30,
+            elliptical_fraction: 0.3,
+            profile_fraction: 0.3,
+            ..FiberParams::default()
+        };
+        let specs = random_fibers(&p, 9);
+        let text = scene_toml(&specs);
+        let scene = SceneDescription::parse(&text, "synth.toml").unwrap();
+        assert_eq!(scene.cylinders.len(), 30, "count");
+        for (spec, cyl) in specs.iter().zip(&scene.cylinders) {
+            assert_eq!(spec.build().unwrap(), *cyl, "round trip of {spec:?}");
+        }
+    }
+
+    #[test]
+    fn rng_is_uniformish() {
+        let mut r = Rng::new(1);
+        let mean = (0..10_000).map(|_| r.f64()).sum::<f64>() / 10_000.0;
+        assert!((mean - 0.5).abs() < 0.01, "mean {mean}");
+        let v = r.unit_vector();
+        assert!((v.length() - 1.0).abs() < 1e-12, "unit vector {v}");
+    }
+}
