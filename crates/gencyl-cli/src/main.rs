@@ -1,7 +1,8 @@
 //! The `gencyl` command: exact ray casting of generalized cylinders (hair fibers).
 //!
 //! `gencyl raycast SCENE RAYS` writes the hits of every ray as CSV (see
-//! `gencyl_render::raycast` and interface.md section 3).
+//! `gencyl_render::raycast` and interface.md section 3); `gencyl render [SCENE]` renders a
+//! PNG (the built-in scene without SCENE).
 
 use std::io::{self, Write};
 use std::path::PathBuf;
@@ -11,6 +12,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use gencyl_render::raycast::{self, RaycastOptions};
+use gencyl_render::render;
 use gencyl_render::scene::{Scene, SceneDescription, SceneError};
 
 /// Exact ray tracing of generalized cylinders (hair fibers).
@@ -26,6 +28,30 @@ enum Command {
     /// Intersect every ray of RAYS with the scene; write the hits as CSV to standard output
     /// (header `ray,t,u,v,nx,ny,nz,object,part`).
     Raycast(RaycastArgs),
+    /// Render a scene to a PNG image: without SCENE, the built-in tuft of curly, elliptical,
+    /// twisted fibers; with SCENE, its `[[cylinder]]`s, framed automatically.
+    Render(RenderArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct RenderArgs {
+    /// A scene file (TOML, `[[cylinder]]` tables); default: the built-in scene.
+    scene: Option<PathBuf>,
+    /// Output image (PNG).
+    #[arg(short, long, default_value = "gencyl.png")]
+    output: PathBuf,
+    /// Image width in pixels (the height follows the 4:3 aspect).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(8..=16384))]
+    width: Option<u32>,
+    /// Samples per pixel.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    spp: Option<u32>,
+    /// Seed of the per-pixel sample streams.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -82,7 +108,52 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Raycast(args) => raycast_command(args),
+        Command::Render(args) => render_command(args),
     }
+}
+
+fn render_command(args: RenderArgs) -> Result<()> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = args.threads {
+        pool = pool.num_threads(n as usize);
+    }
+    let pool = pool.build().context("cannot start the worker threads")?;
+    pool.install(|| {
+        let t0 = Instant::now();
+        let (cylinders, mut stage) = match &args.scene {
+            None => render::default_scene(),
+            Some(path) => {
+                let cylinders = SceneDescription::load(path)?.cylinders;
+                let stage = render::framed_stage(&cylinders);
+                (cylinders, stage)
+            }
+        };
+        if let Some(w) = args.width {
+            stage.camera.height = (w * 3 / 4).max(1);
+            stage.camera.width = w;
+        }
+        if let Some(spp) = args.spp {
+            stage.spp = spp;
+        }
+        stage.seed = args.seed;
+        let scene = Scene::new(cylinders);
+        let t1 = Instant::now();
+        let image = render::render(&scene, &stage);
+        let t2 = Instant::now();
+        render::write_png(&image, &args.output)
+            .with_context(|| format!("cannot write {}", args.output.display()))?;
+        eprintln!(
+            "{}: {}x{}, {} spp, {} cylinders; scene {:.2} s, render {:.2} s",
+            args.output.display(),
+            stage.camera.width,
+            stage.camera.height,
+            stage.spp,
+            scene.cylinders().len(),
+            (t1 - t0).as_secs_f64(),
+            (t2 - t1).as_secs_f64()
+        );
+        Ok(())
+    })
 }
 
 fn raycast_command(args: RaycastArgs) -> Result<()> {

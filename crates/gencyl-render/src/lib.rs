@@ -1,4 +1,4 @@
-//! Scenes, acceleration and (later) rendering for `gencyl` generalized cylinders.
+//! Scenes, acceleration and rendering for `gencyl` generalized cylinders.
 //!
 //! - [`scene`]: the TOML scene file ([`scene::SceneDescription`]) and the scene ready for ray
 //!   queries ([`scene::Scene`]: the cylinders and a BVH over them; nearest, all and any hits).
@@ -7,6 +7,8 @@
 //! - [`cull`]: a cheap ray-space test that rejects most missed cylinders before the exact solver.
 //! - [`error`]: diagnostics that point into an input file.
 //! - [`synth`]: seeded random fibers and rays, for tests and benchmarks.
+//! - [`render`]: a first renderer (camera, hair shading, floor, soft shadows) and the built-in
+//!   default scene.
 //!
 //! ```
 //! use gencyl_render::scene::{Scene, SceneDescription};
@@ -25,5 +27,6 @@ pub mod bvh;
 pub mod cull;
 pub mod error;
 pub mod raycast;
+pub mod render;
 pub mod scene;
 pub mod synth;

@@ -90,7 +90,10 @@ struct SampleRng(u64);
 
 impl SampleRng {
     fn new(x: u32, y: u32, sample: u32, seed: u64) -> Self {
-        SampleRng(seed ^ ((x as u64) << 40 | (y as u64) << 16 | sample as u64).wrapping_mul(0x9E3779B97F4A7C15))
+        SampleRng(
+            seed ^ ((x as u64) << 40 | (y as u64) << 16 | sample as u64)
+                .wrapping_mul(0x9E3779B97F4A7C15),
+        )
     }
     fn next(&mut self) -> f64 {
         self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
@@ -120,7 +123,11 @@ pub fn render(scene: &Scene, stage: &Stage) -> Image {
                 .collect()
         })
         .collect();
-    Image { width: cam.width, height: cam.height, pixels: rows.into_iter().flatten().collect() }
+    Image {
+        width: cam.width,
+        height: cam.height,
+        pixels: rows.into_iter().flatten().collect(),
+    }
 }
 
 fn sky(d: DVec3) -> DVec3 {
@@ -129,7 +136,13 @@ fn sky(d: DVec3) -> DVec3 {
 }
 
 /// Visibility of a random point of the light from `p`, and the direction and distance to it.
-fn light_sample(scene: &Scene, light: &SphereLight, p: DVec3, rng: &mut SampleRng, scratch: &mut Scratch) -> (DVec3, f64) {
+fn light_sample(
+    scene: &Scene,
+    light: &SphereLight,
+    p: DVec3,
+    rng: &mut SampleRng,
+    scratch: &mut Scratch,
+) -> (DVec3, f64) {
     // Uniform point in the sphere (rejection), good enough for soft shadows.
     let offset = loop {
         let q = DVec3::new(rng.next(), rng.next(), rng.next()) * 2.0 - DVec3::ONE;
@@ -141,10 +154,23 @@ fn light_sample(scene: &Scene, light: &SphereLight, p: DVec3, rng: &mut SampleRn
     let dist = to.length();
     let dir = to / dist;
     let blocked = scene.any_hit(&Ray::new(p, dir), 1e-9, dist, scratch);
-    (dir, if blocked { 0.0 } else { light.intensity / (dist * dist) })
+    (
+        dir,
+        if blocked {
+            0.0
+        } else {
+            light.intensity / (dist * dist)
+        },
+    )
 }
 
-fn radiance(scene: &Scene, stage: &Stage, ray: &Ray, rng: &mut SampleRng, scratch: &mut Scratch) -> DVec3 {
+fn radiance(
+    scene: &Scene,
+    stage: &Stage,
+    ray: &Ray,
+    rng: &mut SampleRng,
+    scratch: &mut Scratch,
+) -> DVec3 {
     let floor_t = stage.floor_y.and_then(|fy| {
         let t = (fy - ray.origin.y) / ray.dir.y;
         (t > 0.0 && t.is_finite()).then_some(t)
@@ -161,11 +187,15 @@ fn radiance(scene: &Scene, stage: &Stage, ray: &Ray, rng: &mut SampleRng, scratc
         // Lambert on the exact normal, plus Kajiya-Kay: diffuse ~ sin(t, l), specular
         // ~ (cos(t,l) cos(t,v) + sin(t,l) sin(t,v))^p.
         let (tl, tv) = (t.dot(l), t.dot(v));
-        let (sl, sv) = ((1.0 - tl * tl).max(0.0).sqrt(), (1.0 - tv * tv).max(0.0).sqrt());
+        let (sl, sv) = (
+            (1.0 - tl * tl).max(0.0).sqrt(),
+            (1.0 - tv * tv).max(0.0).sqrt(),
+        );
         let lambert = n.dot(l).max(0.0);
         let kk_spec = (-tl * tv + sl * sv).max(0.0).powf(40.0);
         let color = stage.fiber_color;
-        return color * (ambient + e * (0.75 * lambert + 0.25 * sl)) + DVec3::splat(0.35 * e * kk_spec * lambert.sqrt());
+        return color * (ambient + e * (0.75 * lambert + 0.25 * sl))
+            + DVec3::splat(0.35 * e * kk_spec * lambert.sqrt());
     }
     if let Some(t) = floor_t {
         let p = ray.at(t);
@@ -183,10 +213,18 @@ fn radiance(scene: &Scene, stage: &Stage, ray: &Ray, rng: &mut SampleRng, scratc
 pub fn write_png(image: &Image, path: &Path) -> std::io::Result<()> {
     let encode = |c: f64| {
         let c = c.clamp(0.0, 1.0);
-        let s = if c <= 0.0031308 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+        let s = if c <= 0.0031308 {
+            12.92 * c
+        } else {
+            1.055 * c.powf(1.0 / 2.4) - 0.055
+        };
         (s * 255.0 + 0.5) as u8
     };
-    let data: Vec<u8> = image.pixels.iter().flat_map(|p| [encode(p.x), encode(p.y), encode(p.z)]).collect();
+    let data: Vec<u8> = image
+        .pixels
+        .iter()
+        .flat_map(|p| [encode(p.x), encode(p.y), encode(p.z)])
+        .collect();
     // Write to a temporary file first, so a failure leaves nothing half-written.
     let tmp = path.with_extension("png.partial");
     {
@@ -223,7 +261,8 @@ pub fn default_scene() -> (Vec<GeneralizedCylinder>, Stage) {
                 let s = k as f64 / (n - 1) as f64;
                 let ang = phase + s * turns * std::f64::consts::TAU;
                 let grow = s.min(0.25) * 4.0; // curls open up above the root
-                root + DVec3::Y * (height * s) + lean * s * s
+                root + DVec3::Y * (height * s)
+                    + lean * s * s
                     + DVec3::new(ang.cos(), 0.0, ang.sin()) * curl_r * grow
             })
             .collect();
@@ -243,14 +282,112 @@ pub fn default_scene() -> (Vec<GeneralizedCylinder>, Stage) {
             look_at: DVec3::new(0.0, 0.7, 0.0),
             up: DVec3::Y,
             vfov: 32.0,
-            width: 480,
-            height: 360,
+            width: 320,
+            height: 240,
         },
-        light: SphereLight { center: DVec3::new(2.5, 4.0, 2.0), radius: 0.8, intensity: 28.0 },
+        light: SphereLight {
+            center: DVec3::new(2.5, 4.0, 2.0),
+            radius: 0.8,
+            intensity: 28.0,
+        },
         floor_y: Some(0.0),
         fiber_color: DVec3::new(0.42, 0.2, 0.08),
-        spp: 4,
+        spp: 3,
         seed: 1,
     };
     (cylinders, stage)
+}
+
+/// A stage that frames `cylinders`: the camera looks at the centre of their bounds from the
+/// front and above, far enough to see all of it; the floor just below; the light above.
+pub fn framed_stage(cylinders: &[GeneralizedCylinder]) -> Stage {
+    let (_, mut stage) = default_scene();
+    let b = cylinders
+        .iter()
+        .fold(gencyl::Aabb::EMPTY, |b, c| b.union(c.bounds()));
+    if !(b.min.is_finite() && b.max.is_finite()) {
+        return stage; // no cylinders: the empty stage
+    }
+    let center = b.center();
+    let radius = (0.5 * (b.max - b.min).length()).max(1e-9);
+    let dist = radius / (0.5 * stage.camera.vfov.to_radians()).sin() * 1.05;
+    let dir = DVec3::new(0.25, 0.35, 1.0).normalize();
+    stage.camera.eye = center + dir * dist;
+    stage.camera.look_at = center;
+    stage.light = SphereLight {
+        center: center + DVec3::new(1.5, 3.0, 1.2) * radius * 1.5,
+        radius: 0.4 * radius,
+        intensity: stage.light.intensity / 36.0 * (radius * 1.5).powi(2) * 14.0,
+    };
+    stage.floor_y = Some(b.min.y - 0.02 * radius);
+    stage
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small_default() -> (Scene, Stage) {
+        let (cyl, mut stage) = default_scene();
+        stage.camera.width = 40;
+        stage.camera.height = 30;
+        stage.spp = 1;
+        (Scene::new(cyl), stage)
+    }
+
+    #[test]
+    fn the_default_scene_shows_fibers_floor_and_sky_without_nan() {
+        let (scene, stage) = small_default();
+        let img = render(&scene, &stage);
+        assert_eq!(img.pixels.len(), 40 * 30, "one value per pixel");
+        assert!(
+            img.pixels
+                .iter()
+                .all(|p| p.is_finite() && p.min_element() >= 0.0),
+            "finite, non-negative"
+        );
+        // Fiber pixels are reddish-brown (r > 1.5 b); the sky is bluish (b > r).
+        let fiber = img.pixels.iter().filter(|p| p.x > 1.5 * p.z).count();
+        let sky = img.pixels.iter().filter(|p| p.z > p.x).count();
+        assert!(
+            fiber > 20 && sky > 20,
+            "fiber pixels {fiber}, sky pixels {sky}"
+        );
+    }
+
+    #[test]
+    fn renders_do_not_depend_on_the_thread_count() {
+        let (scene, stage) = small_default();
+        let run = |n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+                .install(|| render(&scene, &stage))
+        };
+        assert_eq!(run(1), run(2), "1 thread vs 2 threads");
+    }
+
+    #[test]
+    fn png_output_is_complete_or_absent() {
+        let (scene, stage) = small_default();
+        let img = render(&scene, &stage);
+        let dir = std::env::temp_dir().join(format!("gencyl-png-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("x.png");
+        write_png(&img, &path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG", "PNG signature");
+        assert!(
+            !path.with_extension("png.partial").exists(),
+            "no partial file left"
+        );
+        // A directory that does not exist: an error, and nothing written.
+        let bad = dir.join("missing").join("y.png");
+        assert!(
+            write_png(&img, &bad).is_err(),
+            "unwritable path is an error"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

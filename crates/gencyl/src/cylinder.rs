@@ -118,6 +118,11 @@ pub enum GeometryError {
     /// A control point is NaN or infinite.
     #[error("control point {0} of the axis is not finite")]
     NonFiniteAxis(usize),
+    /// The control points are so far apart that their differences overflow.
+    #[error(
+        "the axis' control points are too far apart to represent (coordinates near the f64 limit)"
+    )]
+    AxisTooLarge,
     /// All control points coincide.
     #[error("the axis has zero length (all control points coincide)")]
     ZeroLengthAxis,
@@ -179,22 +184,33 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         sweep.validate().map_err(GeometryError::Sweep)?;
         let origin = axis.points[0];
         let local = axis.translated(origin);
-        let max_speed = local
+        // Differences of huge coordinates can overflow even when the coordinates are finite.
+        let extent = local
+            .points
+            .iter()
+            .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
+        if !extent.is_finite() {
+            return Err(GeometryError::AxisTooLarge);
+        }
+        if extent == 0.0 {
+            return Err(GeometryError::ZeroLengthAxis);
+        }
+        // The cusp test is scale-free: run it on the axis scaled to unit extent, so squared
+        // speeds cannot overflow or underflow.
+        let unit = CubicBezier::new(local.points.map(|p| p / extent));
+        let max_speed = unit
             .hodograph()
             .iter()
             .fold(0.0f64, |m, h| m.max(h.length()));
-        if max_speed == 0.0 {
-            return Err(GeometryError::ZeroLengthAxis);
-        }
-        let min_speed = local.min_speed();
+        let min_speed = unit.min_speed();
         if min_speed <= CUSP_TOLERANCE * max_speed {
             let at = (0..=1000)
                 .map(|i| i as f64 / 1000.0)
-                .min_by(|&a, &b| local.d1(a).length().total_cmp(&local.d1(b).length()))
+                .min_by(|&a, &b| unit.d1(a).length().total_cmp(&unit.d1(b).length()))
                 .unwrap_or(0.0);
             return Err(GeometryError::Cusp {
-                min_speed,
-                max_speed,
+                min_speed: min_speed * extent,
+                max_speed: max_speed * extent,
                 at,
             });
         }
@@ -343,7 +359,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let d1 = self.axis.d1_r(u);
         let q = d1.dot_cst(d);
         let m = d1.dot(e);
-        (e.mul(q) - V3::cst(d).mul(m), q)
+        (e.scaled(q) - V3::cst(d).scaled(m), q)
     }
 
     /// `(q phi, q)`: `phi(u)` times `q(u) = a'(u).d`, from `q rho = (n.V, b.V)` and the rule's

@@ -93,8 +93,8 @@ pub fn frame_r<T: Real>(axis: &CubicBezier, framing: &Framing, u: T) -> [V3<T>; 
                 d2 = axis.d2_r(us);
                 bt = d1.cross(d2);
             }
-            let t = d1.div(d1.norm2().sqrt());
-            let b = bt.div(bt.norm2().sqrt());
+            let t = d1.divided(d1.norm2().sqrt());
+            let b = bt.divided(bt.norm2().sqrt());
             [t, b.cross(t), b]
         }
     }

@@ -458,7 +458,7 @@ impl<T: Real> V3<T> {
     }
     /// `self * k`.
     #[inline]
-    pub fn mul(self, k: T) -> Self {
+    pub fn scaled(self, k: T) -> Self {
         V3 {
             x: self.x * k,
             y: self.y * k,
@@ -467,7 +467,7 @@ impl<T: Real> V3<T> {
     }
     /// `self / k`.
     #[inline]
-    pub fn div(self, k: T) -> Self {
+    pub fn divided(self, k: T) -> Self {
         V3 {
             x: self.x / k,
             y: self.y / k,

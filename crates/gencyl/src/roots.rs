@@ -212,9 +212,10 @@ pub fn bracketed_root(
         }
         let newton = x - fx / dfx;
         let width = b - a;
-        x = if newton > a && newton < b && width < 0.7 * last_width {
-            newton
-        } else if newton > a && newton < b && (newton - x).abs() < 0.25 * width {
+        // Newton's step when it stays in the bracket and either the bracket shrinks fast or the
+        // step is small; otherwise bisect.
+        let inside = newton > a && newton < b;
+        x = if inside && (width < 0.7 * last_width || (newton - x).abs() < 0.25 * width) {
             newton
         } else {
             0.5 * (a + b)

@@ -218,7 +218,8 @@ fn elliptic_cylinder_matches_closed_form() {
 fn contract_example_rays() {
     // ../shared/spec/examples/straight-cylinder: radius 0.1 along x from 0 to 3, capped.
     let cyl = FiberSpec::round(straight(3.0), 0.1).build().unwrap();
-    let cases: [(DVec3, DVec3, Option<(f64, f64, DVec3, Part)>); 5] = [
+    type Case = (DVec3, DVec3, Option<(f64, f64, DVec3, Part)>);
+    let cases: [Case; 5] = [
         (
             DVec3::new(1.5, 0.0, 1.0),
             DVec3::new(0.0, 0.0, -1.0),
@@ -391,7 +392,7 @@ fn planar_fiber_seen_orthographically() {
         let ray = Ray::new(DVec3::new(p.x, p.y, 5.0), DVec3::new(0.0, 0.0, -1.0));
         let hit = cyl.intersect(&ray, 0.0, f64::INFINITY);
         // Skip the band within 1e-6 r of the silhouette and foot points near the ends.
-        if (rho - r).abs() < 1e-6 * r || uc < 1e-3 || uc > 1.0 - 1e-3 {
+        if (rho - r).abs() < 1e-6 * r || !(1e-3..=1.0 - 1e-3).contains(&uc) {
             continue;
         }
         match hit {
@@ -646,6 +647,33 @@ fn degenerate_input_is_rejected() {
         spec.build().unwrap_err(),
         GeometryError::BadNormalHint,
         "hint along the axis"
+    );
+    // Scale does not matter: a valid fiber at 1e200 builds, differences that overflow do not.
+    let big = [
+        DVec3::ZERO,
+        DVec3::new(1e200, 0.0, 0.0),
+        DVec3::new(2e200, 1e200, 0.0),
+        DVec3::new(3e200, 0.0, 0.0),
+    ];
+    assert!(
+        FiberSpec::round(big, 1e199).build().is_ok(),
+        "huge but valid"
+    );
+    let tiny = big.map(|p| p / 1e200 * 1e-300);
+    assert!(
+        FiberSpec::round(tiny, 1e-301).build().is_ok(),
+        "tiny but valid"
+    );
+    let overflow = [
+        DVec3::new(-1e308, 0.0, 0.0),
+        DVec3::ZERO,
+        DVec3::new(1e308, 1.0, 0.0),
+        DVec3::new(1e308, 0.0, 0.0),
+    ];
+    assert_eq!(
+        FiberSpec::round(overflow, 1.0).build().unwrap_err(),
+        GeometryError::AxisTooLarge,
+        "overflow"
     );
     // Two coincident inner points are fine (no cusp: a' = 3(P1 - P0) != 0 at the ends).
     let ok = [

@@ -41,6 +41,12 @@
 //! library hits, misses, false hits, grazing band, max t error, max normal error, ... .
 //! `cargo test --release -p gencyl --test oracle -- --nocapture` shows them.
 
+#![allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    clippy::needless_range_loop
+)]
+
 use std::f64::consts::{PI, TAU};
 use std::time::Instant;
 
@@ -244,7 +250,7 @@ enum OSection {
 
 impl OLoop {
     fn new(points: &[DVec2]) -> OLoop {
-        assert!(!points.is_empty() && points.len() % 3 == 0);
+        assert!(!points.is_empty() && points.len().is_multiple_of(3));
         let k = points.len() / 3;
         let pieces: Vec<[DVec2; 4]> = (0..k)
             .map(|i| {
@@ -1227,18 +1233,17 @@ fn compare_ray(
             .into_iter()
             .filter(|c| (c.t - h.t).abs() <= match_tol && !known(c))
             .min_by(|a, b| (a.t - h.t).abs().total_cmp(&(b.t - h.t).abs()))
+            && (o.caps || matches!(c.part, OPart::Side | OPart::Rim))
         {
-            if o.caps || matches!(c.part, OPart::Side | OPart::Rim) {
-                st.fine_resolved += 1;
-                used[i] = true;
-                let mut c = c;
-                if c.band.is_none() {
-                    c.band = Some("fine-resolved pair");
-                }
-                cross.push(c);
-                matched.push(Some(i));
-                continue;
+            st.fine_resolved += 1;
+            used[i] = true;
+            let mut c = c;
+            if c.band.is_none() {
+                c.band = Some("fine-resolved pair");
             }
+            cross.push(c);
+            matched.push(Some(i));
+            continue;
         }
         let cosi = h.normal.dot(r.d) / r.dl;
         let near_dropped_rim = dropped

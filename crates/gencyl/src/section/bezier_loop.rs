@@ -36,7 +36,7 @@ pub enum ProfileError {
 impl BezierLoop {
     /// The loop through `3k` points `P_0, C_0, D_0, P_1, ...` (see the type's docs).
     pub fn new(points: &[DVec2]) -> Result<Self, ProfileError> {
-        if points.is_empty() || points.len() % 3 != 0 {
+        if points.is_empty() || !points.len().is_multiple_of(3) {
             return Err(ProfileError::Count(points.len()));
         }
         if let Some(i) = points.iter().position(|p| !p.is_finite()) {
@@ -153,13 +153,13 @@ fn gauss16(f: impl Fn(f64) -> f64) -> f64 {
     // 8-point Gauss-Legendre on [0, 1], applied on two halves.
     const X: [f64; 4] = [
         0.1834346424956498,
-        0.5255324099163290,
+        0.525_532_409_916_329,
         0.7966664774136267,
         0.9602898564975363,
     ];
     const W: [f64; 4] = [
-        0.3626837833783620,
-        0.3137066458778873,
+        0.362_683_783_378_362,
+        0.313_706_645_877_887_3,
         0.2223810344533745,
         0.1012285362903763,
     ];
