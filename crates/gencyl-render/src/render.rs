@@ -292,7 +292,7 @@ pub fn default_scene() -> (Vec<GeneralizedCylinder>, Stage) {
         },
         floor_y: Some(0.0),
         fiber_color: DVec3::new(0.42, 0.2, 0.08),
-        spp: 3,
+        spp: 2,
         seed: 1,
     };
     (cylinders, stage)
