@@ -196,12 +196,18 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             let t = t0 + r.w;
             if t > tmin && t < tmax && t.is_finite() {
                 let u = r.u.clamp(0.0, 1.0);
+                // v in [0, 2 pi): rem_euclid of a tiny negative angle can round up to 2 pi.
+                let v = if r.v >= std::f64::consts::TAU || r.v < 0.0 {
+                    r.v.rem_euclid(std::f64::consts::TAU) % std::f64::consts::TAU
+                } else {
+                    r.v
+                };
                 out.push(Hit {
                     t,
                     u,
-                    v: r.v,
+                    v,
                     point: ray.at(t),
-                    normal: self.normal(u, r.v),
+                    normal: self.normal(u, v),
                     part: Part::Side,
                 });
             }
