@@ -1766,7 +1766,7 @@ fn oracle_round_3d() {
             (Method::Auto, 3000),
             (Method::Polynomial, 3000),
             (Method::Radial, 3000),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1780,7 +1780,7 @@ fn oracle_taper_nocaps() {
             (Method::Auto, 3000),
             (Method::Polynomial, 3000),
             (Method::Radial, 3000),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1793,7 +1793,7 @@ fn oracle_ellipse() {
         &[
             (Method::Auto, 600),
             (Method::Radial, 300),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1806,7 +1806,7 @@ fn oracle_twist_ellipse() {
         &[
             (Method::Auto, 600),
             (Method::Radial, 300),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1819,7 +1819,7 @@ fn oracle_twist_nocaps() {
         &[
             (Method::Auto, 600),
             (Method::Radial, 300),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1832,7 +1832,7 @@ fn oracle_planar_arc() {
         &[
             (Method::Auto, 600),
             (Method::Radial, 300),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1845,7 +1845,7 @@ fn oracle_straight_default_frame() {
         &[
             (Method::Auto, 1200),
             (Method::Radial, 600),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1858,7 +1858,7 @@ fn oracle_straight_hint() {
         &[
             (Method::Auto, 1500),
             (Method::Radial, 800),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1871,7 +1871,7 @@ fn oracle_far_from_origin() {
         &[
             (Method::Auto, 600),
             (Method::Radial, 300),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1885,7 +1885,7 @@ fn oracle_long_thin() {
             (Method::Auto, 1500),
             (Method::Polynomial, 1500),
             (Method::Radial, 1500),
-            (Method::General, 30),
+            (Method::General, 300),
         ],
     );
 }
@@ -1895,7 +1895,7 @@ fn oracle_trilobal_loop() {
     run_case(
         &case("trilobal"),
         11,
-        &[(Method::Auto, 30), (Method::General, 15)],
+        &[(Method::Auto, 200), (Method::General, 200)],
     );
 }
 
@@ -1904,7 +1904,7 @@ fn oracle_kidney_loop_nocaps() {
     run_case(
         &case("kidney-nocaps"),
         12,
-        &[(Method::Auto, 30), (Method::General, 15)],
+        &[(Method::Auto, 200), (Method::General, 200)],
     );
 }
 
@@ -1913,7 +1913,7 @@ fn oracle_circle_approximation_loop() {
     run_case(
         &case("circle-approx"),
         13,
-        &[(Method::Auto, 30), (Method::General, 15)],
+        &[(Method::Auto, 200), (Method::General, 200)],
     );
 }
 
