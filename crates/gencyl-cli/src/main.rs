@@ -12,8 +12,8 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use gencyl_render::raycast::{self, RaycastOptions};
-use gencyl_render::render;
 use gencyl_render::scene::{Scene, SceneDescription, SceneError};
+use gencyl_render::{hair, render};
 
 /// Exact ray tracing of generalized cylinders (hair fibers).
 #[derive(Debug, Parser)]
@@ -35,8 +35,12 @@ enum Command {
 
 #[derive(Debug, clap::Args)]
 struct RenderArgs {
-    /// A scene file (TOML, `[[cylinder]]` tables); default: the built-in scene.
+    /// A scene file (TOML, `[[cylinder]]` tables) or a hair model (`.hair`, Cem Yuksel's
+    /// format); default: the built-in scene.
     scene: Option<PathBuf>,
+    /// Fiber radius for a `.hair` model (default: half the file's thickness).
+    #[arg(long, allow_negative_numbers = true)]
+    radius: Option<f64>,
     /// Output image (PNG).
     #[arg(short, long, default_value = "gencyl.png")]
     output: PathBuf,
@@ -122,6 +126,19 @@ fn render_command(args: RenderArgs) -> Result<()> {
         let t0 = Instant::now();
         let (cylinders, mut stage) = match &args.scene {
             None => render::default_scene(),
+            Some(path) if path.extension().is_some_and(|e| e == "hair") => {
+                let name = path.display().to_string();
+                let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
+                let hair = hair::parse_hair(&bytes, &name)?;
+                if let Some(r) = args.radius
+                    && !(r.is_finite() && r > 0.0)
+                {
+                    anyhow::bail!("--radius must be positive and finite, got {r}");
+                }
+                let cylinders = hair::strands_to_cylinders(&hair.to_strands(args.radius), &name)?;
+                let stage = render::framed_stage(&cylinders);
+                (cylinders, stage)
+            }
             Some(path) => {
                 let cylinders = SceneDescription::load(path)?.cylinders;
                 let stage = render::framed_stage(&cylinders);

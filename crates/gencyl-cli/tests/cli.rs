@@ -375,3 +375,59 @@ fn bad_arguments() {
         "help"
     );
 }
+
+/// The real TressFX ponytail (data/ponytail.hair, MIT, see data/README.md) renders; a truncated
+/// copy and a bad radius are errors that leave no image behind.
+#[test]
+fn render_a_hair_model_and_reject_broken_ones() {
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/ponytail.hair");
+    let out = scratch("ponytail.png", b"");
+    std::fs::remove_file(&out).unwrap();
+    let run = gencyl(
+        &[
+            "render",
+            path(&model),
+            "-o",
+            path(&out),
+            "--width",
+            "48",
+            "--spp",
+            "1",
+        ],
+        None,
+    );
+    assert!(
+        run.status.success(),
+        "render failed: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let png = std::fs::read(&out).unwrap();
+    assert_eq!(&png[1..4], b"PNG", "a PNG was written");
+    assert!(
+        String::from_utf8_lossy(&run.stderr).contains("73995 cylinders"),
+        "every segment kept"
+    );
+
+    let bytes = std::fs::read(&model).unwrap();
+    let cut = scratch("cut.hair", &bytes[..bytes.len() - 5]);
+    let bad_png = scratch("bad.png", b"");
+    std::fs::remove_file(&bad_png).unwrap();
+    let err = fails(&["render", path(&cut), "-o", path(&bad_png)], None);
+    assert!(
+        err.contains("cut.hair") && err.contains("truncated"),
+        "message: {err}"
+    );
+    let err = fails(
+        &[
+            "render",
+            path(&model),
+            "--radius",
+            "-1",
+            "-o",
+            path(&bad_png),
+        ],
+        None,
+    );
+    assert!(err.contains("--radius"), "message: {err}");
+    assert!(!bad_png.exists(), "no image after an error");
+}

@@ -6,6 +6,7 @@
 //! - [`raycast`]: the ray file format and the batch intersection behind `gencyl raycast`.
 //! - [`cull`]: a cheap ray-space test that rejects most missed cylinders before the exact solver.
 //! - [`error`]: diagnostics that point into an input file.
+//! - [`hair`]: Cem Yuksel's `.hair` files, read as strands.
 //! - [`synth`]: seeded random fibers and rays, for tests and benchmarks.
 //! - [`render`]: a first renderer (camera, hair shading, floor, soft shadows) and the built-in
 //!   default scene.
@@ -26,6 +27,7 @@
 pub mod bvh;
 pub mod cull;
 pub mod error;
+pub mod hair;
 pub mod raycast;
 pub mod render;
 pub mod scene;
