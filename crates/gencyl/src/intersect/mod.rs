@@ -154,9 +154,15 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// The nearest hit with `tmin < t < tmax`, if any.
     pub fn intersect(&self, ray: &Ray, tmin: f64, tmax: f64) -> Option<Hit> {
-        let mut hits = Vec::new();
-        self.intersect_all(ray, tmin, tmax, &mut hits);
-        hits.first().copied()
+        // A per-thread buffer: no allocation per ray once it has grown.
+        thread_local! {
+            static HITS: std::cell::RefCell<Vec<Hit>> = const { std::cell::RefCell::new(Vec::new()) };
+        }
+        HITS.with_borrow_mut(|hits| {
+            hits.clear();
+            self.intersect_all(ray, tmin, tmax, hits);
+            hits.first().copied()
+        })
     }
 
     /// Appends every hit with `tmin < t < tmax` to `out`, sorted by `t`.

@@ -96,8 +96,14 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     };
     let coeffs = hit_polynomial(cyl, o, d, r);
     let poly = PolyDyn::new(coeffs);
-    let (mut found, mut scratch) = (Vec::with_capacity(10), Vec::with_capacity(10));
-    poly.roots_between_with_buffer(lo, hi, 1e-13, &mut found, &mut scratch);
+    // polycool's dynamic-degree solver wants Vec buffers: per-thread ones, reused.
+    thread_local! {
+        static BUFFERS: std::cell::RefCell<(Vec<f64>, Vec<f64>)> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+    }
+    let found: ArrayVec<f64, 16> = BUFFERS.with_borrow_mut(|(found, scratch)| {
+        poly.roots_between_with_buffer(lo, hi, 1e-13, found, scratch);
+        found.iter().copied().take(16).collect()
+    });
     let radial = Radial {
         cyl,
         o,
