@@ -314,7 +314,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             nrm / len
         } else {
             // A singular point of the surface (a fold edge): fall back to the radial direction.
-            (c_world(n, b, cu.x.v, cu.y.v)).normalize_or(n)
+            (cu.x.v * n + cu.y.v * b).normalize_or(n)
         }
     }
 
@@ -370,10 +370,6 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let [_, n, b] = frame_r(&self.axis, &self.framing, u);
         (self.sweep.inverse(u, V2::new(n.dot(v), b.dot(v))), q)
     }
-}
-
-fn c_world(n: DVec3, b: DVec3, cn: f64, cb: f64) -> DVec3 {
-    cn * n + cb * b
 }
 
 /// Plain data for a hair fiber: what a `[[cylinder]]` table holds (interface.md section 2).

@@ -277,6 +277,11 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         for k in 1..=FEATURE_SAMPLES {
             let u = lo + (hi - lo) * k as f64 / FEATURE_SAMPLES as f64;
             let fu = value(u).0;
+            // A feature that vanishes identically (phi is a straight line) gives no split points.
+            if prev.1 == 0.0 && fu == 0.0 {
+                prev = (u, fu);
+                continue;
+            }
             if let Some(r) = bracketed_root(&value, prev.0, u, prev.1, fu)
                 && r > lo
                 && r < hi
