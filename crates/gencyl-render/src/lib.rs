@@ -27,8 +27,11 @@
 pub mod bvh;
 pub mod cull;
 pub mod error;
+pub mod film;
 pub mod hair;
+pub mod material;
 pub mod raycast;
 pub mod render;
+pub mod sampling;
 pub mod scene;
 pub mod synth;
