@@ -9,11 +9,15 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use gencyl_render::film::{Film, Window};
+use gencyl_render::integrator::{self, Integrator, RenderSettings};
 use gencyl_render::raycast::{self, RaycastOptions};
 use gencyl_render::scene::{Scene, SceneDescription, SceneError};
-use gencyl_render::{hair, render};
+use gencyl_render::world::World;
+use gencyl_render::{hair, render, synth};
+use indicatif::{ProgressBar, ProgressStyle};
 
 /// Exact ray tracing of generalized cylinders (hair fibers).
 #[derive(Debug, Parser)]
@@ -28,34 +32,78 @@ enum Command {
     /// Intersect every ray of RAYS with the scene; write the hits as CSV to standard output
     /// (header `ray,t,u,v,nx,ny,nz,object,part`).
     Raycast(RaycastArgs),
-    /// Render a scene to a PNG image: without SCENE, the built-in tuft of curly, elliptical,
-    /// twisted fibers; with SCENE, its `[[cylinder]]`s, framed automatically.
+    /// Render a scene to PNG or EXR: without SCENE, the built-in tuft of curly, elliptical,
+    /// twisted fibers.
     Render(RenderArgs),
+    /// Merge windows rendered with `--crop` into the full frame (bit-identical to rendering
+    /// it whole).
+    Merge(MergeArgs),
+    /// Write a generated hair model (a head of wavy strands) as a `.hair` file.
+    Generate(GenerateArgs),
 }
 
 #[derive(Debug, clap::Args)]
 struct RenderArgs {
-    /// A scene file (TOML, `[[cylinder]]` tables) or a hair model (`.hair`, Cem Yuksel's
-    /// format); default: the built-in scene.
+    /// A scene file (TOML) or a hair model (`.hair`, Cem Yuksel's format); default: the
+    /// built-in scene.
     scene: Option<PathBuf>,
+    /// Output image: `.png` (8-bit sRGB) or `.exr` (linear float, every channel).
+    #[arg(short, long, default_value = "gencyl.png")]
+    output: PathBuf,
+    /// Integrator: normals, uv, depth, direct, path or xray (default: the scene's, else path).
+    #[arg(long)]
+    integrator: Option<Integrator>,
+    /// Image width in pixels; the height keeps the camera's aspect ratio.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    width: Option<u32>,
+    /// Samples per pixel (default: the scene's, else 16).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    spp: Option<u32>,
+    /// Most scattering events on a path (default: the scene's, else 16).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    max_depth: Option<u32>,
+    /// Seed of the per-pixel sample streams (default: the scene's, else 1).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Render only the window `x0,y0,x1,y1` of the frame (pixels, x1 and y1 excluded); write
+    /// it as `.exr` to merge windows with `gencyl merge`.
+    #[arg(long)]
+    crop: Option<String>,
     /// Fiber radius for a `.hair` model (default: half the file's thickness).
     #[arg(long, allow_negative_numbers = true)]
     radius: Option<f64>,
-    /// Output image (PNG).
-    #[arg(short, long, default_value = "gencyl.png")]
-    output: PathBuf,
-    /// Image width in pixels (the height follows the 4:3 aspect).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(8..=16384))]
-    width: Option<u32>,
-    /// Samples per pixel.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
-    spp: Option<u32>,
-    /// Seed of the per-pixel sample streams.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(Debug, clap::Args)]
+struct MergeArgs {
+    /// Windows of one frame, as written by `gencyl render --crop ... -o part.exr`.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// The merged image: `.png` or `.exr`.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+struct GenerateArgs {
+    /// The hair file to write.
+    #[arg(short, long, default_value = "generated.hair")]
+    output: PathBuf,
+    /// Number of strands.
+    #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
+    strands: u32,
+    /// Segments per strand.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u16).range(1..=1000))]
+    segments: u16,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -113,6 +161,8 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Raycast(args) => raycast_command(args),
         Command::Render(args) => render_command(args),
+        Command::Merge(args) => merge_command(args),
+        Command::Generate(args) => generate_command(args),
     }
 }
 
@@ -122,55 +172,152 @@ fn render_command(args: RenderArgs) -> Result<()> {
         pool = pool.num_threads(n as usize);
     }
     let pool = pool.build().context("cannot start the worker threads")?;
+    let ext = args
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("");
+    if !matches!(ext, "png" | "exr") {
+        bail!(
+            "{}: the output must end in .png or .exr",
+            args.output.display()
+        );
+    }
+    if let Some(r) = args.radius
+        && !(r.is_finite() && r > 0.0)
+    {
+        bail!("--radius must be positive and finite, got {r}");
+    }
     pool.install(|| {
         let t0 = Instant::now();
-        let (cylinders, mut stage) = match &args.scene {
+        let desc = match &args.scene {
             None => render::default_scene(),
             Some(path) if path.extension().is_some_and(|e| e == "hair") => {
-                let name = path.display().to_string();
-                let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
-                let hair = hair::parse_hair(&bytes, &name)?;
-                if let Some(r) = args.radius
-                    && !(r.is_finite() && r > 0.0)
-                {
-                    anyhow::bail!("--radius must be positive and finite, got {r}");
-                }
-                let cylinders = hair::strands_to_cylinders(&hair.to_strands(args.radius), &name)?;
-                let stage = render::framed_stage(&cylinders);
-                (cylinders, stage)
+                SceneDescription::from_hair_file(path, args.radius).map_err(anyhow::Error::msg)?
             }
             Some(path) => {
-                let cylinders = SceneDescription::load(path)?.cylinders;
-                let stage = render::framed_stage(&cylinders);
-                (cylinders, stage)
+                if args.radius.is_some() {
+                    bail!("--radius applies to .hair models; a scene file sets radii itself");
+                }
+                SceneDescription::load(path)?
             }
         };
-        if let Some(w) = args.width {
-            stage.camera.height = (w * 3 / 4).max(1);
-            stage.camera.width = w;
-        }
-        if let Some(spp) = args.spp {
-            stage.spp = spp;
-        }
-        stage.seed = args.seed;
-        let scene = Scene::new(cylinders);
         let t1 = Instant::now();
-        let image = render::render(&scene, &stage);
+        let scene_camera = desc.camera;
+        let table = desc.render;
+        let mut world = World::new(desc);
         let t2 = Instant::now();
-        render::write_png(&image, &args.output)
+        let bounds = world.bounds();
+        let mut camera = scene_camera.unwrap_or_else(|| render::framed_camera(bounds, 640, 480));
+        if let Some(w) = args.width {
+            camera.height = ((w as u64 * camera.height as u64 + camera.width as u64 / 2)
+                / camera.width as u64)
+                .max(1) as u32;
+            camera.width = w;
+        }
+        if world.lights.is_empty() && world.environment.is_none() {
+            let (light, env) = render::default_lighting(bounds);
+            world.lights.push(light);
+            world.environment = Some(env);
+        }
+        let defaults = RenderSettings::default();
+        let settings = RenderSettings {
+            integrator: args
+                .integrator
+                .or(table.integrator)
+                .unwrap_or(defaults.integrator),
+            spp: args.spp.or(table.spp).unwrap_or(defaults.spp),
+            max_depth: args
+                .max_depth
+                .or(table.max_depth)
+                .unwrap_or(defaults.max_depth),
+            seed: args.seed.or(table.seed).unwrap_or(defaults.seed),
+        };
+        let window = match &args.crop {
+            Some(c) => Window::parse(c, camera.width, camera.height)
+                .map_err(|e| anyhow::anyhow!("--crop: {e}"))?,
+            None => Window::full(camera.width, camera.height),
+        };
+        let bar = if args.quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::new(window.height() as u64)
+        };
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} {bar:40} {pos}/{len} rows, {elapsed} (ETA {eta})",
+            )
+            .expect("a valid template"),
+        );
+        let image = integrator::render(&world, &camera, &settings, window, &|done| {
+            bar.set_position(done)
+        });
+        bar.finish_and_clear();
+        let t3 = Instant::now();
+        image
+            .write(&args.output)
             .with_context(|| format!("cannot write {}", args.output.display()))?;
         eprintln!(
-            "{}: {}x{}, {} spp, {} cylinders; scene {:.2} s, render {:.2} s",
+            "{}: {}x{} ({}), {} spp, {:?}, {} cylinders; load {:.2} s, BVH {:.2} s, render {:.2} s",
             args.output.display(),
-            stage.camera.width,
-            stage.camera.height,
-            stage.spp,
-            scene.cylinders().len(),
+            window.width(),
+            window.height(),
+            if window == Window::full(camera.width, camera.height) {
+                "full frame".to_string()
+            } else {
+                format!(
+                    "window {},{},{},{} of {}x{}",
+                    window.x0, window.y0, window.x1, window.y1, camera.width, camera.height
+                )
+            },
+            settings.spp,
+            settings.integrator,
+            world.scene.cylinders().len(),
             (t1 - t0).as_secs_f64(),
-            (t2 - t1).as_secs_f64()
+            (t2 - t1).as_secs_f64(),
+            (t3 - t2).as_secs_f64()
         );
         Ok(())
     })
+}
+
+fn merge_command(args: MergeArgs) -> Result<()> {
+    let parts = args
+        .parts
+        .iter()
+        .map(|p| Film::read_exr(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let full = Film::merge(&parts)?;
+    full.write(&args.output)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    eprintln!(
+        "{}: {}x{} from {} windows",
+        args.output.display(),
+        full.frame.0,
+        full.frame.1,
+        parts.len()
+    );
+    Ok(())
+}
+
+fn generate_command(args: GenerateArgs) -> Result<()> {
+    let t0 = Instant::now();
+    let (strands, thickness) =
+        synth::hair_model(args.strands as usize, args.segments as usize, args.seed);
+    let bytes = hair::write_hair(&strands, Some(&thickness), "gencyl generate");
+    let tmp = args.output.with_extension("hair.partial");
+    std::fs::write(&tmp, &bytes)
+        .and_then(|()| std::fs::rename(&tmp, &args.output))
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    eprintln!(
+        "{}: {} strands x {} segments ({} bytes) in {:.2} s",
+        args.output.display(),
+        args.strands,
+        args.segments,
+        bytes.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 fn raycast_command(args: RaycastArgs) -> Result<()> {

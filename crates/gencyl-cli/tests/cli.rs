@@ -281,7 +281,7 @@ fn bad_scenes_name_file_and_line() {
     let (_, rays) = straight();
     let cases: &[(&str, String, &str)] = &[
         ("unknown-key", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1]\ncolour = \"red\"\n"), ":4:1: unknown field `colour`"),
-        ("unknown-table", "[camera]\nfov = 40\n".to_string(), ":1:2: unknown field `camera`"),
+        ("unknown-table", "[lighting]\nfov = 40\n".to_string(), ":1:2: unknown field `lighting`"),
         ("three-radii", format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1, 0.1]\n"), ":3:16: invalid length 3"),
         ("five-points", "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0],[4,0,0]]\nmajor_radius = [0.1, 0.1]\n".to_string(), ":2:10: invalid length 5"),
         ("string-radius", format!("[[cylinder]]\n{AXIS}\nmajor_radius = \"thin\"\n"), ":3:16: invalid type: string"),

@@ -18,7 +18,7 @@
 //! thickness (f32 per point), transparency (f32 per point), colour (3 f32 per point). A strand
 //! of `s` segments has `s + 1` points. Thickness is the fiber's diameter.
 
-use gencyl::{GeometryError, Section, Strand};
+use gencyl::{Section, Strand};
 use glam::DVec3;
 
 /// A HAIR file's strands and defaults.
@@ -263,24 +263,6 @@ impl HairFile {
     }
 }
 
-/// The cylinders of every strand; an error names the strand and segment.
-pub fn strands_to_cylinders(
-    strands: &[Strand],
-    file: &str,
-) -> Result<Vec<gencyl::GeneralizedCylinder>, HairError> {
-    let mut out = Vec::new();
-    for (i, s) in strands.iter().enumerate() {
-        let cyl = s
-            .cylinders()
-            .map_err(|(seg, e): (usize, GeometryError)| HairError::Invalid {
-                file: file.to_string(),
-                problem: format!("strand {i}, segment {seg}: {e}"),
-            })?;
-        out.extend(cyl);
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -320,8 +302,12 @@ mod tests {
         }
         let t = h.thickness.as_ref().unwrap();
         assert!((t[4][6] - 0.16).abs() < 1e-6, "thickness {}", t[4][6]);
-        let cyl = strands_to_cylinders(&h.to_strands(None), "t.hair").unwrap();
-        assert_eq!(cyl.len(), (2..7).sum::<usize>(), "one cylinder per segment");
+        let cyl: usize = h
+            .to_strands(None)
+            .iter()
+            .map(|s| s.cylinders().unwrap().len())
+            .sum();
+        assert_eq!(cyl, (2..7).sum::<usize>(), "one cylinder per segment");
     }
 
     #[test]
@@ -391,9 +377,6 @@ mod tests {
         assert_eq!(s.len(), 1, "the all-repeated strand is skipped");
         assert_eq!(s[0].points.len(), 3, "the repeated point is dropped");
         assert_eq!(s[0].radius, [0.05, 0.05], "half the default thickness");
-        assert!(
-            strands_to_cylinders(&s, "t.hair").is_ok(),
-            "no cusp after merging"
-        );
+        assert!(s[0].cylinders().is_ok(), "no cusp after merging");
     }
 }

@@ -25,13 +25,19 @@
 //! ```
 
 pub mod bvh;
+pub mod camera;
 pub mod cull;
+pub mod description;
 pub mod error;
 pub mod film;
 pub mod hair;
+pub mod integrator;
+pub mod light;
 pub mod material;
 pub mod raycast;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod shapes;
 pub mod synth;
+pub mod world;

@@ -35,13 +35,13 @@ impl SampleRng {
     }
 
     /// Uniform in `[0, 1)`.
-    pub fn next(&mut self) -> f64 {
+    pub fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
     /// Two uniform numbers in `[0, 1)`.
-    pub fn next2(&mut self) -> [f64; 2] {
-        [self.next(), self.next()]
+    pub fn uniform2(&mut self) -> [f64; 2] {
+        [self.uniform(), self.uniform()]
     }
 }
 
@@ -111,7 +111,7 @@ mod tests {
     fn basis_is_orthonormal() {
         let mut rng = SampleRng::from_seed(3);
         for _ in 0..1000 {
-            let n = uniform_sphere(rng.next2());
+            let n = uniform_sphere(rng.uniform2());
             let (x, y) = basis(n);
             for (a, b) in [(x, y), (x, n), (y, n)] {
                 assert!(a.dot(b).abs() < 1e-12, "orthogonal for n = {n}");
@@ -119,7 +119,10 @@ mod tests {
             for v in [x, y] {
                 assert!((v.length() - 1.0).abs() < 1e-12, "unit for n = {n}");
             }
-            assert!((x.cross(y) - n).length() < 1e-12, "right-handed for n = {n}");
+            assert!(
+                (x.cross(y) - n).length() < 1e-12,
+                "right-handed for n = {n}"
+            );
         }
     }
 
@@ -130,7 +133,7 @@ mod tests {
         let mut rng = SampleRng::from_seed(7);
         let n = 200_000;
         let mean = |f: &dyn Fn([f64; 2]) -> DVec3, rng: &mut SampleRng| {
-            (0..n).map(|_| f(rng.next2()).z).sum::<f64>() / n as f64
+            (0..n).map(|_| f(rng.uniform2()).z).sum::<f64>() / n as f64
         };
         assert!(mean(&uniform_sphere, &mut rng).abs() < 0.01, "sphere");
         assert!(
@@ -143,8 +146,11 @@ mod tests {
             "cone"
         );
         for _ in 0..1000 {
-            let v = cosine_hemisphere(rng.next2());
-            assert!((v.length() - 1.0).abs() < 1e-12 && v.z >= 0.0, "unit, upper");
+            let v = cosine_hemisphere(rng.uniform2());
+            assert!(
+                (v.length() - 1.0).abs() < 1e-12 && v.z >= 0.0,
+                "unit, upper"
+            );
         }
     }
 

@@ -213,6 +213,62 @@ pub fn rays_csv(rays: &[Ray]) -> String {
     s
 }
 
+/// A generated head of hair for scale tests: `strands` strands of `segments` segments rooted
+/// on the upper part of a unit-radius scalp at the origin, growing out from it, falling under
+/// gravity and waving; thickness (diameter) 0.004 at the root, 0.002 at the tip. Returns the
+/// points of each strand, root first, and their thickness, as [`crate::hair::write_hair`]
+/// takes them.
+pub fn hair_model(strands: usize, segments: usize, seed: u64) -> (Vec<Vec<DVec3>>, Vec<Vec<f64>>) {
+    use rayon::prelude::*;
+    let points: Vec<Vec<DVec3>> = (0..strands)
+        .into_par_iter()
+        .map(|i| {
+            let mut rng = Rng::new(seed ^ (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            // A root on the scalp above y = -0.1, not on the face (z > 0.5, y < 0.6).
+            let n = loop {
+                let n = rng.unit_vector();
+                if n.y > -0.1 && !(n.z > 0.5 && n.y < 0.6) {
+                    break n;
+                }
+            };
+            let length = rng.range(1.4, 2.2);
+            let step = length / segments as f64;
+            let wave = DVec3::new(rng.range(-1.0, 1.0), 0.0, rng.range(-1.0, 1.0));
+            let (freq, phase) = (rng.range(4.0, 9.0), rng.range(0.0, std::f64::consts::TAU));
+            let mut p = n * 1.0;
+            let mut dir = n;
+            let mut out = Vec::with_capacity(segments + 1);
+            out.push(p);
+            for k in 0..segments {
+                let s = (k as f64 + 0.5) / segments as f64;
+                // Fall under gravity, wave sideways, and stay outside the scalp.
+                dir = (dir
+                    + DVec3::new(0.0, -0.35, 0.0)
+                    + wave * 0.25 * (freq * s * 3.0 + phase).sin())
+                .normalize();
+                let next = p + dir * step;
+                let lift = 1.02 + 0.1 * s - next.length();
+                p = if lift > 0.0 {
+                    next + next.normalize() * lift
+                } else {
+                    next
+                };
+                out.push(p);
+            }
+            out
+        })
+        .collect();
+    let thickness = points
+        .iter()
+        .map(|s| {
+            (0..s.len())
+                .map(|k| 0.004 - 0.002 * k as f64 / (s.len() - 1) as f64)
+                .collect()
+        })
+        .collect();
+    (points, thickness)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -24,6 +24,48 @@ pub struct Strand {
 }
 
 impl Strand {
+    /// The uniform cubic B-spline control points whose curve (as [`Strand::bezier_segments`]
+    /// builds it) passes through every point of `points`, in order: the natural interpolating
+    /// cubic spline. Segment `i` starts at `(Q_{i-1} + 4 Q_i + Q_{i+1}) / 6`, so
+    /// `Q_{i-1} + 4 Q_i + Q_{i+1} = 6 P_i` inside, and the reflected end points make `Q_0 = P_0`,
+    /// `Q_{n-1} = P_{n-1}` (zero second derivative at both ends). The tridiagonal system is
+    /// solved by the Thomas algorithm (diagonally dominant, so stable).
+    pub fn interpolating_control_points(points: &[DVec3]) -> Vec<DVec3> {
+        let n = points.len();
+        if n <= 2 {
+            return points.to_vec();
+        }
+        // Unknowns Q_1 .. Q_{n-2}; row i: Q_{i-1} + 4 Q_i + Q_{i+1} = 6 P_i.
+        let m = n - 2;
+        let mut c = vec![0.0; m]; // modified super-diagonal
+        let mut d = vec![DVec3::ZERO; m]; // modified right-hand side
+        for k in 0..m {
+            let mut rhs = 6.0 * points[k + 1];
+            if k == 0 {
+                rhs -= points[0];
+            }
+            if k == m - 1 {
+                rhs -= points[n - 1];
+            }
+            let (sub, prev_c, prev_d) = if k == 0 {
+                (0.0, 0.0, DVec3::ZERO)
+            } else {
+                (1.0, c[k - 1], d[k - 1])
+            };
+            let denom = 4.0 - sub * prev_c;
+            c[k] = 1.0 / denom;
+            d[k] = (rhs - sub * prev_d) / denom;
+        }
+        let mut q = vec![DVec3::ZERO; n];
+        q[0] = points[0];
+        q[n - 1] = points[n - 1];
+        for k in (0..m).rev() {
+            let next = if k + 1 < m { q[k + 2] } else { DVec3::ZERO };
+            q[k + 1] = d[k] - c[k] * next;
+        }
+        q
+    }
+
     /// The Bezier segments of the uniform cubic B-spline through the control points, with the
     /// end points reflected (`Q_{-1} = 2 Q_0 - Q_1`, likewise at the tip) so the curve starts at
     /// the root and ends at the tip. Segment `i` over `Q_{i-1}..Q_{i+2}` has Bezier points
@@ -119,6 +161,20 @@ mod tests {
             assert!((a.d1(1.0) - b.d1(0.0)).length() < 1e-13, "C1");
             assert!((a.d2(1.0) - b.d2(0.0)).length() < 1e-12, "C2");
         }
+        let through = Strand::interpolating_control_points(&s.points);
+        let interp = Strand {
+            points: through,
+            ..s.clone()
+        };
+        for (i, seg) in interp.bezier_segments().iter().enumerate() {
+            let gap = (seg.point(0.0) - s.points[i]).length();
+            assert!(gap < 1e-14, "the curve passes through point {i}: gap {gap}");
+            let end = (seg.point(1.0) - s.points[i + 1]).length();
+            assert!(end < 1e-14, "and through point {}: gap {end}", i + 1);
+        }
+        let segs = interp.bezier_segments();
+        assert!(segs[0].d2(0.0).length() < 1e-12, "natural: no curvature at the root");
+        assert!(segs[3].d2(1.0).length() < 1e-12, "natural: no curvature at the tip");
         let cyls = s.cylinders().unwrap();
         assert_eq!(cyls[0].caps(), [true, false], "root cap only");
         assert_eq!(cyls[3].caps(), [false, true], "tip cap only");

@@ -1,0 +1,173 @@
+//! Cameras: perspective (pinhole) and orthographic.
+
+use gencyl::Ray;
+use glam::DVec3;
+
+/// How the camera projects the scene onto the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// A pinhole camera with this vertical field of view, in degrees (0 < fov < 180).
+    Perspective {
+        /// Vertical field of view, degrees.
+        fov: f64,
+    },
+    /// Parallel rays; the image spans `height` world units vertically.
+    Orthographic {
+        /// Height of the viewed rectangle, world units.
+        height: f64,
+    },
+}
+
+/// A camera at `position` looking at `look_at`, `up` giving the image's vertical.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position (orthographic: the centre of the image rectangle).
+    pub position: DVec3,
+    /// The point at the image's centre.
+    pub look_at: DVec3,
+    /// The image's up direction (need not be perpendicular to the view).
+    pub up: DVec3,
+    /// Perspective or orthographic.
+    pub projection: Projection,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+}
+
+impl Camera {
+    /// Checks the camera's geometry; the message names the problem.
+    pub fn validate(&self) -> Result<(), String> {
+        let view = self.look_at - self.position;
+        if !(self.position.is_finite() && self.look_at.is_finite() && self.up.is_finite()) {
+            return Err("camera position, look_at and up must be finite".into());
+        }
+        if view.length_squared() == 0.0 {
+            return Err("camera look_at equals its position".into());
+        }
+        if view.normalize().cross(self.up).length_squared() < 1e-12 {
+            return Err("camera up is parallel to the view direction".into());
+        }
+        match self.projection {
+            Projection::Perspective { fov } if !(fov > 0.0 && fov < 180.0) => {
+                Err(format!("camera fov must be in (0, 180) degrees, got {fov}"))
+            }
+            Projection::Orthographic { height } if !(height > 0.0 && height.is_finite()) => Err(
+                format!("camera view_height must be positive and finite, got {height}"),
+            ),
+            _ if self.width == 0 || self.height == 0 => Err(format!(
+                "camera resolution must be positive, got {}x{}",
+                self.width, self.height
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// The view basis: right `u`, up `v`, forward `w`.
+    fn basis(&self) -> (DVec3, DVec3, DVec3) {
+        let w = (self.look_at - self.position).normalize();
+        let u = w.cross(self.up).normalize();
+        (u, u.cross(w), w)
+    }
+
+    /// Half the image's height on the image plane at unit distance (perspective) or in world
+    /// units (orthographic).
+    fn half_height(&self) -> f64 {
+        match self.projection {
+            Projection::Perspective { fov } => (fov.to_radians() * 0.5).tan(),
+            Projection::Orthographic { height } => 0.5 * height,
+        }
+    }
+
+    /// The ray through image position `(x, y)`, in pixels from the top left corner (pixel
+    /// `(i, j)` covers `[i, i+1) x [j, j+1)`). Directions are unit length.
+    pub fn ray(&self, x: f64, y: f64) -> Ray {
+        let (u, v, w) = self.basis();
+        let half_h = self.half_height();
+        let half_w = half_h * self.width as f64 / self.height as f64;
+        let sx = (2.0 * x / self.width as f64 - 1.0) * half_w;
+        let sy = (1.0 - 2.0 * y / self.height as f64) * half_h;
+        match self.projection {
+            Projection::Perspective { .. } => {
+                Ray::new(self.position, (w + sx * u + sy * v).normalize())
+            }
+            Projection::Orthographic { .. } => Ray::new(self.position + sx * u + sy * v, w),
+        }
+    }
+
+    /// The side of a pixel in world units, for an orthographic camera.
+    pub fn pixel_size(&self) -> Option<f64> {
+        match self.projection {
+            Projection::Orthographic { height } => Some(height / self.height as f64),
+            Projection::Perspective { .. } => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam(projection: Projection) -> Camera {
+        Camera {
+            position: DVec3::new(0.0, 0.0, 5.0),
+            look_at: DVec3::ZERO,
+            up: DVec3::Y,
+            projection,
+            width: 200,
+            height: 100,
+        }
+    }
+
+    #[test]
+    fn perspective_corners_span_the_field_of_view() {
+        let c = cam(Projection::Perspective { fov: 90.0 });
+        let centre = c.ray(100.0, 50.0);
+        assert!(
+            (centre.dir - DVec3::NEG_Z).length() < 1e-15,
+            "centre looks at look_at"
+        );
+        // fov 90: the top edge is 45 degrees up; the aspect 2:1 makes the right edge tan = 2.
+        let top = c.ray(100.0, 0.0).dir;
+        assert!(
+            (top.y / -top.z - 1.0).abs() < 1e-12,
+            "top edge at 45 degrees: {top}"
+        );
+        let right = c.ray(200.0, 50.0).dir;
+        assert!(
+            (right.x / -right.z - 2.0).abs() < 1e-12,
+            "right edge: {right}"
+        );
+    }
+
+    #[test]
+    fn orthographic_rays_are_parallel_and_span_the_view_height() {
+        let c = cam(Projection::Orthographic { height: 3.0 });
+        let (a, b) = (c.ray(0.0, 0.0), c.ray(200.0, 100.0));
+        assert_eq!(a.dir, DVec3::NEG_Z, "parallel");
+        assert_eq!(b.dir, DVec3::NEG_Z, "parallel");
+        assert!(
+            (a.origin - DVec3::new(-3.0, 1.5, 5.0)).length() < 1e-12,
+            "{}",
+            a.origin
+        );
+        assert!(
+            (b.origin - DVec3::new(3.0, -1.5, 5.0)).length() < 1e-12,
+            "{}",
+            b.origin
+        );
+        assert_eq!(c.pixel_size(), Some(0.03), "pixel size");
+    }
+
+    #[test]
+    fn bad_cameras_are_named() {
+        let mut c = cam(Projection::Perspective { fov: 180.0 });
+        assert!(c.validate().unwrap_err().contains("fov"), "fov");
+        c.projection = Projection::Perspective { fov: 40.0 };
+        c.up = DVec3::Z;
+        assert!(c.validate().unwrap_err().contains("parallel"), "up");
+        c.up = DVec3::Y;
+        c.look_at = c.position;
+        assert!(c.validate().unwrap_err().contains("look_at"), "look_at");
+    }
+}

@@ -1,0 +1,385 @@
+//! Integrators: what a camera ray's value is, and the driver that renders a window of the
+//! frame.
+//!
+//! - `normals`, `uv`, `depth`: debug views of the nearest hit.
+//! - `direct`: light arriving at the first non-specular surface, by next-event estimation
+//!   and BSDF sampling combined with multiple importance sampling (power heuristic).
+//! - `path`: a unidirectional path tracer, the same estimators at every vertex, Russian
+//!   roulette after three bounces.
+//! - `xray`: the path length through the solids along the ray, `L_m` per material, written
+//!   as transmittance `exp(-sum mu_m L_m)` in R, G, B and raw `L = sum L_m` in channel `L`.
+//!
+//! Every film has channels R, G, B and A (the fraction of samples that hit something);
+//! `depth` adds `Z` (the nearest hit's distance over the samples, infinite when none hit),
+//! `xray` adds `L` (mean path length). A pixel's samples come from
+//! [`SampleRng::new`]`(x, y, sample, seed)` in full-frame coordinates, so its value does not
+//! depend on the thread count or the crop window.
+
+use std::str::FromStr;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use gencyl::{Part, Ray};
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::film::{Film, Window};
+use crate::light::Light;
+use crate::material::{Bsdf, Material};
+use crate::sampling::{SampleRng, power_heuristic};
+use crate::scene::{SceneHit, Scratch};
+use crate::world::{Crossing, Surface, World, WorldHit};
+
+/// What each pixel shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Integrator {
+    /// The outward normal, `(n + 1) / 2`.
+    Normals,
+    /// `(u, v / 2 pi, part / 2)`.
+    Uv,
+    /// Grey `1 / (1 + t / t_focus)` (`t_focus` the camera's distance to `look_at`), raw `Z`.
+    Depth,
+    /// Direct lighting.
+    Direct,
+    /// Path tracing.
+    Path,
+    /// X-ray path length and transmittance.
+    Xray,
+}
+
+impl FromStr for Integrator {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Ok(match s {
+            "normals" => Integrator::Normals,
+            "uv" => Integrator::Uv,
+            "depth" => Integrator::Depth,
+            "direct" => Integrator::Direct,
+            "path" => Integrator::Path,
+            "xray" => Integrator::Xray,
+            _ => {
+                return Err(format!(
+                    "unknown integrator `{s}`: expected normals, uv, depth, direct, path or xray"
+                ));
+            }
+        })
+    }
+}
+
+impl Integrator {
+    /// The film's channels.
+    pub fn channels(self) -> &'static [&'static str] {
+        match self {
+            Integrator::Depth => &["R", "G", "B", "A", "Z"],
+            Integrator::Xray => &["R", "G", "B", "A", "L"],
+            _ => &["R", "G", "B", "A"],
+        }
+    }
+}
+
+/// How to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// The integrator.
+    pub integrator: Integrator,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Most scattering events on a path (specular ones included).
+    pub max_depth: u32,
+    /// Seed of the per-pixel sample streams.
+    pub seed: u64,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            integrator: Integrator::Path,
+            spp: 16,
+            max_depth: 16,
+            seed: 1,
+        }
+    }
+}
+
+/// Offsets a ray's origin off the surface at `p` (normal `n`) to the side `dir` goes, by
+/// `1e-9 (1 + |p|_inf)`: far above the hits' error (about `1e-12` of the scene's size), far
+/// below a fiber's radius.
+fn spawn(p: DVec3, n: DVec3, dir: DVec3) -> Ray {
+    let eps = 1e-9 * (1.0 + p.abs().max_element());
+    let side = if dir.dot(n) >= 0.0 { 1.0 } else { -1.0 };
+    Ray::new(p + side * eps * n, dir)
+}
+
+/// Per-thread buffers.
+#[derive(Default)]
+pub struct Buffers {
+    scratch: Scratch,
+    hits: Vec<SceneHit>,
+    crossings: Vec<Crossing>,
+}
+
+/// One sample's contribution to a pixel, per channel of [`Integrator::channels`].
+type Sample = [f64; 5];
+
+/// The value of one camera ray.
+pub fn sample_ray(
+    world: &World,
+    camera: &Camera,
+    settings: &RenderSettings,
+    ray: &Ray,
+    rng: &mut SampleRng,
+    buf: &mut Buffers,
+) -> Sample {
+    let miss_rgb = |d: DVec3| world.environment.map_or(DVec3::ZERO, |e| e.radiance(d));
+    match settings.integrator {
+        Integrator::Normals | Integrator::Uv | Integrator::Depth => {
+            let Some(h) = world.intersect(ray, 0.0, f64::INFINITY, &mut buf.scratch) else {
+                return [0.0, 0.0, 0.0, 0.0, f64::INFINITY];
+            };
+            let c = match (settings.integrator, h.surface) {
+                (Integrator::Normals, _) => (h.normal + DVec3::ONE) * 0.5,
+                (Integrator::Uv, Surface::Fiber { u, v, part, .. }) => {
+                    let p = match part {
+                        Part::Side => 0.0,
+                        Part::StartCap => 0.5,
+                        Part::EndCap => 1.0,
+                    };
+                    DVec3::new(u, v / std::f64::consts::TAU, p)
+                }
+                (Integrator::Uv, _) => DVec3::ZERO,
+                _ => {
+                    let focus = (camera.look_at - camera.position).length();
+                    DVec3::splat(1.0 / (1.0 + h.t * ray.dir.length() / focus))
+                }
+            };
+            [c.x, c.y, c.z, 1.0, h.t * ray.dir.length()]
+        }
+        Integrator::Xray => {
+            let (l, mu_l) = xray_length(world, ray, buf);
+            let tr = (-mu_l).exp();
+            [tr, tr, tr, if l > 0.0 { 1.0 } else { 0.0 }, l]
+        }
+        Integrator::Direct | Integrator::Path => {
+            let (c, hit) = radiance(world, settings, ray, rng, buf, miss_rgb);
+            [c.x, c.y, c.z, if hit { 1.0 } else { 0.0 }, 0.0]
+        }
+    }
+}
+
+/// Path length through the solids along the ray (`t` in units of `|d|`), in total and
+/// weighted by each material's `mu`. For solids that do not overlap, `L_m = sum of exit t -
+/// sum of entry t` over the material's crossings: a ray that starts inside has one exit more
+/// than entries, which counts from `t = 0` (the origin). Crossings with `d . n = 0` exactly
+/// (tangent touches) carry no length.
+pub fn xray_length(world: &World, ray: &Ray, buf: &mut Buffers) -> (f64, f64) {
+    buf.crossings.clear();
+    world.crossings(
+        ray,
+        0.0,
+        &mut buf.crossings,
+        &mut buf.hits,
+        &mut buf.scratch,
+    );
+    let scale = ray.dir.length();
+    let (mut l, mut mu_l) = (0.0, 0.0);
+    for c in &buf.crossings {
+        let signed = if c.entering { -c.t } else { c.t } * scale;
+        l += signed;
+        mu_l += signed * world.materials[c.material as usize].xray_mu;
+    }
+    (l.max(0.0), mu_l.max(0.0))
+}
+
+/// Radiance along a camera ray, and whether it hit anything. `direct` stops after the first
+/// non-specular vertex (light from its next event and its BSDF sample only).
+fn radiance(
+    world: &World,
+    settings: &RenderSettings,
+    camera_ray: &Ray,
+    rng: &mut SampleRng,
+    buf: &mut Buffers,
+    env: impl Fn(DVec3) -> DVec3,
+) -> (DVec3, bool) {
+    let direct_only = settings.integrator == Integrator::Direct;
+    let n_lights = world.lights.len() + usize::from(world.environment.is_some());
+    let pick = if n_lights > 0 {
+        1.0 / n_lights as f64
+    } else {
+        0.0
+    };
+    let mut ray = Ray::new(camera_ray.origin, camera_ray.dir.normalize());
+    let (mut l, mut beta) = (DVec3::ZERO, DVec3::ONE);
+    // Density of the BSDF sample that made `ray` (inf: camera or specular), and its origin.
+    let mut prev_pdf = f64::INFINITY;
+    let mut prev_point = ray.origin;
+    let mut emission_only = false;
+    let mut first_hit = false;
+    for depth in 0..=settings.max_depth {
+        let Some(h) = world.intersect(&ray, 0.0, f64::INFINITY, &mut buf.scratch) else {
+            if let Some(e) = world.environment {
+                let w = if prev_pdf.is_infinite() {
+                    1.0
+                } else {
+                    power_heuristic(prev_pdf, pick * e.pdf())
+                };
+                l += beta * env(ray.dir) * w;
+            }
+            break;
+        };
+        if depth == 0 {
+            first_hit = true;
+        }
+        if let Surface::Light(i) = h.surface {
+            if let Light::Sphere { radiance, .. } = world.lights[i as usize]
+                && h.normal.dot(ray.dir) < 0.0
+            {
+                let w = if prev_pdf.is_infinite() {
+                    1.0
+                } else {
+                    power_heuristic(prev_pdf, pick * world.lights[i as usize].pdf(prev_point))
+                };
+                l += beta * radiance * w;
+            }
+            break;
+        }
+        if emission_only || depth == settings.max_depth {
+            break;
+        }
+        let material = world
+            .material(h.surface)
+            .expect("surfaces other than lights have materials")
+            .material;
+        // The segment just travelled was inside this solid if the ray now leaves it.
+        if let Material::Dielectric { sigma_a, .. } = material
+            && h.normal.dot(ray.dir) > 0.0
+        {
+            beta *= (-sigma_a * h.t).exp();
+        }
+        let wo = -ray.dir;
+        let bsdf = Bsdf::new(&material, &world.shading_point(&h), wo);
+        if !bsdf.is_delta() && n_lights > 0 {
+            l += beta * next_event(world, &h, &bsdf, wo, pick, rng, buf);
+        }
+        let Some(s) = bsdf.sample(wo, [rng.uniform(), rng.uniform(), rng.uniform()]) else {
+            break;
+        };
+        if !s.weight.is_finite() || s.weight == DVec3::ZERO {
+            break;
+        }
+        beta *= s.weight;
+        prev_pdf = s.pdf;
+        prev_point = h.point;
+        ray = spawn(h.point, h.normal, s.wi);
+        if direct_only && !bsdf.is_delta() {
+            emission_only = true;
+        }
+        if depth >= 3 {
+            let q = beta.max_element().min(0.95);
+            if rng.uniform() >= q {
+                break;
+            }
+            beta /= q;
+        }
+    }
+    (l, first_hit)
+}
+
+/// Light from one light chosen uniformly (probability `pick`), weighted against BSDF
+/// sampling by the power heuristic.
+fn next_event(
+    world: &World,
+    h: &WorldHit,
+    bsdf: &Bsdf,
+    wo: DVec3,
+    pick: f64,
+    rng: &mut SampleRng,
+    buf: &mut Buffers,
+) -> DVec3 {
+    let choice = ((rng.uniform() / pick) as usize).min(world.lights.len());
+    let u = rng.uniform2();
+    let ls = match world.lights.get(choice) {
+        Some(light) => light.sample(h.point, u),
+        None => world.environment.map(|e| e.sample(u)),
+    };
+    let Some(ls) = ls else {
+        return DVec3::ZERO;
+    };
+    let f = bsdf.eval(wo, ls.wi);
+    if f == DVec3::ZERO || ls.value == DVec3::ZERO {
+        return DVec3::ZERO;
+    }
+    let shadow = spawn(h.point, h.normal, ls.wi);
+    let reach = if ls.dist.is_finite() {
+        (ls.dist - (shadow.origin - h.point).length()) * (1.0 - 1e-9)
+    } else {
+        f64::INFINITY
+    };
+    if world.occluded(&shadow, 0.0, reach, &mut buf.scratch) {
+        return DVec3::ZERO;
+    }
+    let w = if ls.pdf.is_infinite() {
+        1.0
+    } else {
+        power_heuristic(pick * ls.pdf, bsdf.pdf(wo, ls.wi))
+    };
+    f * ls.value * (w / pick)
+}
+
+/// Renders `window` of the frame into a film (rows in parallel on the current rayon pool),
+/// calling `progress(rows_done)` as rows finish.
+pub fn render(
+    world: &World,
+    camera: &Camera,
+    settings: &RenderSettings,
+    window: Window,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Film {
+    let channels = settings.integrator.channels();
+    let nc = channels.len();
+    let mut film = Film::new((camera.width, camera.height), window, channels);
+    let row_len = window.width() as usize * nc;
+    let done = AtomicU64::new(0);
+    film.data.par_chunks_mut(row_len).enumerate().for_each_init(
+        Buffers::default,
+        |buf, (j, row)| {
+            let y = window.y0 + j as u32;
+            for (i, px) in row.chunks_mut(nc).enumerate() {
+                let x = window.x0 + i as u32;
+                let v = pixel(world, camera, settings, x, y, buf);
+                for (dst, src) in px.iter_mut().zip(v) {
+                    *dst = src as f32;
+                }
+            }
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+        },
+    );
+    film
+}
+
+/// The value of pixel `(x, y)`: the mean of its samples (`Z`: their minimum).
+pub fn pixel(
+    world: &World,
+    camera: &Camera,
+    settings: &RenderSettings,
+    x: u32,
+    y: u32,
+    buf: &mut Buffers,
+) -> Sample {
+    let mut sum = [0.0; 5];
+    let mut z = f64::INFINITY;
+    for s in 0..settings.spp {
+        let mut rng = SampleRng::new(x, y, s, settings.seed);
+        let ray = camera.ray(x as f64 + rng.uniform(), y as f64 + rng.uniform());
+        let v = sample_ray(world, camera, settings, &ray, &mut rng, buf);
+        for k in 0..5 {
+            sum[k] += v[k];
+        }
+        z = z.min(v[4]);
+    }
+    let n = settings.spp as f64;
+    let mut out = sum.map(|x| x / n);
+    if settings.integrator == Integrator::Depth {
+        out[4] = z;
+    }
+    out
+}

@@ -1,0 +1,264 @@
+//! Everything a render needs besides the camera: the cylinders with their BVH, spheres,
+//! planes, emitting spheres, materials, lights and the environment; ray queries over all of it.
+
+use gencyl::{Aabb, Part, Ray};
+use glam::DVec3;
+
+use crate::description::SceneDescription;
+use crate::light::{Environment, Light};
+use crate::material::{Material, SceneMaterial, ShadingPoint};
+use crate::scene::{Scene, SceneHit, Scratch};
+use crate::shapes::{Plane, Sphere};
+
+/// What a ray hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Surface {
+    /// Cylinder `object` at `(u, v)` on `part`.
+    Fiber {
+        /// Cylinder number.
+        object: u32,
+        /// Axis parameter.
+        u: f64,
+        /// Section parameter.
+        v: f64,
+        /// Side or cap.
+        part: Part,
+    },
+    /// Sphere number.
+    Sphere(u32),
+    /// Plane number.
+    Plane(u32),
+    /// Spherical light number (an index into the lights).
+    Light(u32),
+}
+
+/// The nearest hit of a ray on the world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldHit {
+    /// Ray parameter.
+    pub t: f64,
+    /// The point.
+    pub point: DVec3,
+    /// Outward unit normal (planes: their normal).
+    pub normal: DVec3,
+    /// What was hit.
+    pub surface: Surface,
+}
+
+/// A boundary crossing of a solid along a ray, for X-ray path lengths.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Crossing {
+    /// Ray parameter.
+    pub t: f64,
+    /// Whether the ray enters the solid there (`d . n < 0`).
+    pub entering: bool,
+    /// The solid's material.
+    pub material: u32,
+}
+
+/// The scene, ready to render.
+#[derive(Clone, Debug)]
+pub struct World {
+    /// Cylinders and their BVH.
+    pub scene: Scene,
+    /// Material of each cylinder.
+    pub cylinder_materials: Vec<u32>,
+    /// Spheres and their materials.
+    pub spheres: Vec<(Sphere, u32)>,
+    /// Planes and their materials.
+    pub planes: Vec<(Plane, u32)>,
+    /// Materials.
+    pub materials: Vec<SceneMaterial>,
+    /// Lights.
+    pub lights: Vec<Light>,
+    /// Environment light, if any.
+    pub environment: Option<Environment>,
+    /// Per material: whether it shades a fiber as a far-field scatterer (hair, Kajiya-Kay),
+    /// whose solid rays pass through: only its entries are hits, never its exits.
+    far_field: Vec<bool>,
+}
+
+impl World {
+    /// Builds the BVH over a scene description's cylinders (in parallel).
+    pub fn new(desc: SceneDescription) -> World {
+        let far_field = desc
+            .materials
+            .iter()
+            .map(|m| matches!(m.material, Material::Hair(_) | Material::KajiyaKay { .. }))
+            .collect();
+        World {
+            far_field,
+            scene: Scene::new(desc.cylinders),
+            cylinder_materials: desc.cylinder_materials,
+            spheres: desc.spheres,
+            planes: desc.planes,
+            materials: desc.materials,
+            lights: desc.lights,
+            environment: desc.environment,
+        }
+    }
+
+    /// Bounds of the cylinders and spheres (not planes or lights).
+    pub fn bounds(&self) -> Aabb {
+        let b = self
+            .scene
+            .cylinders()
+            .iter()
+            .fold(Aabb::EMPTY, |b, c| b.union(c.bounds()));
+        self.spheres.iter().fold(b, |b, (s, _)| {
+            b.union(Aabb {
+                min: s.center - DVec3::splat(s.radius),
+                max: s.center + DVec3::splat(s.radius),
+            })
+        })
+    }
+
+    /// Spheres to test along with the cylinders: the scene's and the emitting ones.
+    fn spheres(&self) -> impl Iterator<Item = (Sphere, Surface)> + '_ {
+        let solid = self
+            .spheres
+            .iter()
+            .enumerate()
+            .map(|(i, (s, _))| (*s, Surface::Sphere(i as u32)));
+        let lights = self.lights.iter().enumerate().filter_map(|(i, l)| match l {
+            Light::Sphere { sphere, .. } => Some((*sphere, Surface::Light(i as u32))),
+            _ => None,
+        });
+        solid.chain(lights)
+    }
+
+    /// Whether a ray may stop at this cylinder hit: not at the exit of a far-field fiber.
+    fn stops(&self, h: &SceneHit, dir: DVec3) -> bool {
+        !(self.far_field[self.cylinder_materials[h.object as usize] as usize]
+            && h.hit.normal.dot(dir) > 0.0)
+    }
+
+    /// The nearest hit with `tmin < t < tmax` (exits of far-field fibers do not count).
+    pub fn intersect(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: f64,
+        scratch: &mut Scratch,
+    ) -> Option<WorldHit> {
+        let mut best: Option<WorldHit> = self
+            .scene
+            .nearest_hit_where(ray, tmin, tmax, scratch, |h| self.stops(h, ray.dir))
+            .map(|SceneHit { hit, object }| WorldHit {
+                t: hit.t,
+                point: hit.point,
+                normal: hit.normal,
+                surface: Surface::Fiber {
+                    object,
+                    u: hit.u,
+                    v: hit.v,
+                    part: hit.part,
+                },
+            });
+        let mut limit = best.map_or(tmax, |b| b.t);
+        for (s, surface) in self.spheres() {
+            if let Some((t0, t1)) = s.crossings(ray) {
+                let t = if t0 > tmin { t0 } else { t1 };
+                if t > tmin && t < limit {
+                    let point = ray.at(t);
+                    limit = t;
+                    best = Some(WorldHit {
+                        t,
+                        point,
+                        normal: s.normal(point),
+                        surface,
+                    });
+                }
+            }
+        }
+        for (i, (p, _)) in self.planes.iter().enumerate() {
+            if let Some(t) = p.crossing(ray)
+                && t > tmin
+                && t < limit
+            {
+                limit = t;
+                best = Some(WorldHit {
+                    t,
+                    point: ray.at(t),
+                    normal: p.normal,
+                    surface: Surface::Plane(i as u32),
+                });
+            }
+        }
+        best
+    }
+
+    /// Whether anything blocks the ray within `tmin < t < tmax` (exits of far-field fibers
+    /// do not).
+    pub fn occluded(&self, ray: &Ray, tmin: f64, tmax: f64, scratch: &mut Scratch) -> bool {
+        let hit = |t: f64| t > tmin && t < tmax;
+        self.spheres()
+            .any(|(s, _)| s.crossings(ray).is_some_and(|(t0, t1)| hit(t0) || hit(t1)))
+            || self
+                .planes
+                .iter()
+                .any(|(p, _)| p.crossing(ray).is_some_and(hit))
+            || self
+                .scene
+                .any_hit_where(ray, tmin, tmax, scratch, |h| self.stops(h, ray.dir))
+    }
+
+    /// Every boundary crossing of a solid (cylinders and spheres; planes bound nothing)
+    /// with `t > tmin`, appended to `out` in no particular order.
+    pub fn crossings(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        out: &mut Vec<Crossing>,
+        hits: &mut Vec<SceneHit>,
+        scratch: &mut Scratch,
+    ) {
+        hits.clear();
+        self.scene.all_hits(ray, tmin, f64::INFINITY, hits, scratch);
+        // A tangent touch (d . n = 0) neither enters nor leaves.
+        let crossing = hits.iter().filter(|h| h.hit.normal.dot(ray.dir) != 0.0);
+        out.extend(crossing.map(|h| Crossing {
+            t: h.hit.t,
+            entering: h.hit.normal.dot(ray.dir) < 0.0,
+            material: self.cylinder_materials[h.object as usize],
+        }));
+        for (s, m) in &self.spheres {
+            if let Some((t0, t1)) = s.crossings(ray) {
+                for (t, entering) in [(t0, true), (t1, false)] {
+                    if t > tmin {
+                        out.push(Crossing {
+                            t,
+                            entering,
+                            material: *m,
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    /// The material of a surface (`None` for lights).
+    pub fn material(&self, s: Surface) -> Option<&SceneMaterial> {
+        let i = match s {
+            Surface::Fiber { object, .. } => self.cylinder_materials[object as usize],
+            Surface::Sphere(i) => self.spheres[i as usize].1,
+            Surface::Plane(i) => self.planes[i as usize].1,
+            Surface::Light(_) => return None,
+        };
+        Some(&self.materials[i as usize])
+    }
+
+    /// The shading geometry at a hit: the normal, and the fiber tangent for fibers.
+    pub fn shading_point(&self, h: &WorldHit) -> ShadingPoint {
+        let tangent = match h.surface {
+            Surface::Fiber { object, u, .. } => {
+                Some(self.scene.cylinders()[object as usize].frame(u).t)
+            }
+            _ => None,
+        };
+        ShadingPoint {
+            normal: h.normal,
+            tangent,
+        }
+    }
+}
