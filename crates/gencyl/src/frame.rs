@@ -73,6 +73,26 @@ impl Framing {
     }
 }
 
+/// Below this `|a' x a''| / (|a'| max |a''|)` the Frenet normal at a point is rounding noise.
+const FRENET_DEGENERATE: f64 = 1e-9;
+
+/// How far from `u` the Frenet frame standing for `u` is taken: 0, or `1e-7` inward where
+/// `a' x a''` is negligible against `|a'| max|a''|` (`a''` is linear, so its largest length is
+/// at an end). That happens at inflections and at the root and tip of a strand, whose
+/// reflected end points make `a'' = 0` there exactly in theory and rounding noise in practice:
+/// the noise would turn the end cap against the side surface.
+fn frenet_shift(axis: &CubicBezier, u: f64) -> f64 {
+    let d1 = axis.d1(u);
+    let scale = d1.length() * axis.d2(0.0).length().max(axis.d2(1.0).length());
+    if d1.cross(axis.d2(u)).length() > FRENET_DEGENERATE * scale {
+        0.0
+    } else if u + 1e-7 <= 1.0 {
+        1e-7
+    } else {
+        -1e-7
+    }
+}
+
 /// The frame `(t, n, b)` at `u` over any [`Real`].
 ///
 /// Frenet: `t = a'/|a'|`, `b = (a' x a'')/|a' x a''|`, `n = b x t`. Where `a' x a''` vanishes
@@ -83,16 +103,9 @@ pub fn frame_r<T: Real>(axis: &CubicBezier, framing: &Framing, u: T) -> [V3<T>; 
     match framing {
         Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
         Framing::Frenet => {
-            let (mut d1, mut d2) = (axis.d1_r(u), axis.d2_r(u));
-            let mut bt = d1.cross(d2);
-            let tiny = 1e-14 * (d1.norm2().value() * d2.norm2().value()).sqrt();
-            if !(bt.norm2().value().sqrt() > tiny) {
-                let step = if u.value() + 1e-7 <= 1.0 { 1e-7 } else { -1e-7 };
-                let us = u + T::cst(step);
-                d1 = axis.d1_r(us);
-                d2 = axis.d2_r(us);
-                bt = d1.cross(d2);
-            }
+            let u = u + T::cst(frenet_shift(axis, u.value()));
+            let (d1, d2) = (axis.d1_r(u), axis.d2_r(u));
+            let bt = d1.cross(d2);
             let t = d1.divided(d1.norm2().sqrt());
             let b = bt.divided(bt.norm2().sqrt());
             [t, b.cross(t), b]
@@ -122,8 +135,7 @@ impl FrameAt {
             n: n.value(),
             b: b.value(),
         };
-        let d1 = axis.d1(u);
-        let speed = d1.length();
+        let speed = axis.d1(u).length();
         match framing {
             Framing::Fixed(_) => FrameAt {
                 frame,
@@ -132,7 +144,9 @@ impl FrameAt {
                 torsion: 0.0,
             },
             Framing::Frenet => {
-                let c = d1.cross(axis.d2(u));
+                // Curvature and torsion where the frame was taken (see `frenet_shift`).
+                let us = u + frenet_shift(axis, u);
+                let c = axis.d1(us).cross(axis.d2(us));
                 let c2 = c.length_squared();
                 let torsion = if c2 > 0.0 {
                     c.dot(axis.third_derivative()) / c2
@@ -142,7 +156,7 @@ impl FrameAt {
                 FrameAt {
                     frame,
                     speed,
-                    curvature: c2.sqrt() / (speed * speed * speed),
+                    curvature: c2.sqrt() / axis.d1(us).length().powi(3),
                     torsion,
                 }
             }

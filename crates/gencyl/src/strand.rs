@@ -173,8 +173,14 @@ mod tests {
             assert!(end < 1e-14, "and through point {}: gap {end}", i + 1);
         }
         let segs = interp.bezier_segments();
-        assert!(segs[0].d2(0.0).length() < 1e-12, "natural: no curvature at the root");
-        assert!(segs[3].d2(1.0).length() < 1e-12, "natural: no curvature at the tip");
+        assert!(
+            segs[0].d2(0.0).length() < 1e-12,
+            "natural: no curvature at the root"
+        );
+        assert!(
+            segs[3].d2(1.0).length() < 1e-12,
+            "natural: no curvature at the tip"
+        );
         let cyls = s.cylinders().unwrap();
         assert_eq!(cyls[0].caps(), [true, false], "root cap only");
         assert_eq!(cyls[3].caps(), [false, true], "tip cap only");
@@ -185,6 +191,52 @@ mod tests {
                 let v = j as f64 * 0.7;
                 let gap = (w[0].surface_point(1.0, v) - w[1].surface_point(0.0, v)).length();
                 assert!(gap < 1e-12, "surface gap {gap} at the joint, v = {v}");
+            }
+        }
+    }
+
+    /// A strand's root and tip have `a'' = 0` (the reflected end points), so the Frenet normal
+    /// there comes from rounding noise unless the frame takes its limit: the frame must be
+    /// continuous into the segment, and the capped elliptical solid closed (every ray crossing
+    /// it an even number of times) near the root and the tip.
+    #[test]
+    fn strand_ends_have_continuous_frames_and_closed_solids() {
+        let s = Strand {
+            points: Strand::interpolating_control_points(&[
+                DVec3::new(-1.6, 0.6, 0.0),
+                DVec3::new(-0.5, 0.2, -0.3),
+                DVec3::new(0.5, -0.3, 0.3),
+                DVec3::new(1.6, -0.8, 0.0),
+            ]),
+            radius: [0.12, 0.12],
+            ellipticity: 0.25,
+            twist: [0.0, 3.14],
+            section: Section::default(),
+        };
+        let cyls = s.cylinders().unwrap();
+        let (first, last) = (&cyls[0], &cyls[cyls.len() - 1]);
+        for (c, u, inward) in [(first, 0.0, 1e-4), (last, 1.0, -1e-4)] {
+            let (a, b) = (c.frame(u), c.frame(u + inward));
+            assert!(
+                (a.n - b.n).length() < 1e-3,
+                "frame continuous at the end u = {u}: {a:?} vs {b:?}"
+            );
+        }
+        // Rays along -z over a grid around each end: hits come in pairs.
+        for (c, end) in [(first, s.points[0]), (last, *s.points.last().unwrap())] {
+            for i in 0..40 {
+                for j in 0..40 {
+                    let o = end + DVec3::new(-0.2 + 0.01 * i as f64, -0.2 + 0.01 * j as f64, 5.0);
+                    let ray = crate::Ray::new(o, DVec3::NEG_Z);
+                    let mut hits = Vec::new();
+                    c.intersect_all(&ray, 0.0, f64::INFINITY, &mut hits);
+                    let tangent = hits.iter().any(|h| h.normal.z.abs() < 1e-6);
+                    assert!(
+                        hits.len() % 2 == 0 || tangent,
+                        "odd crossings {:?} for {ray:?}",
+                        hits.iter().map(|h| (h.t, h.u, h.part)).collect::<Vec<_>>()
+                    );
+                }
             }
         }
     }
