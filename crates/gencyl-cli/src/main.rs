@@ -287,7 +287,15 @@ fn merge_command(args: MergeArgs) -> Result<()> {
         .iter()
         .map(|p| Film::read_exr(p))
         .collect::<Result<Vec<_>, _>>()?;
-    let full = Film::merge(&parts)?;
+    let full = Film::merge(&parts).with_context(|| {
+        let names: Vec<String> = args
+            .parts
+            .iter()
+            .enumerate()
+            .map(|(i, p)| format!("{i}: {}", p.display()))
+            .collect();
+        format!("cannot merge parts {}", names.join(", "))
+    })?;
     full.write(&args.output)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     eprintln!(

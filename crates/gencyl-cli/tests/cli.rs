@@ -431,3 +431,142 @@ fn render_a_hair_model_and_reject_broken_ones() {
     assert!(err.contains("--radius"), "message: {err}");
     assert!(!bad_png.exists(), "no image after an error");
 }
+
+/// Runs a command that must succeed; returns standard error (render summaries go there).
+fn ok_err(args: &[&str]) -> String {
+    let out = gencyl(args, None);
+    assert!(
+        out.status.success(),
+        "gencyl {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stderr).expect("UTF-8 output")
+}
+
+/// The built-in scene renders with no arguments but the output (small, for speed).
+#[test]
+fn render_the_built_in_scene() {
+    let out = scratch("default.png", b"");
+    std::fs::remove_file(&out).unwrap();
+    let log = ok_err(&[
+        "render",
+        "-q",
+        "--width",
+        "40",
+        "--spp",
+        "1",
+        "-o",
+        path(&out),
+    ]);
+    assert!(log.contains("40x30 (full frame)"), "summary: {log}");
+    assert!(
+        log.contains("624 cylinders"),
+        "48 strands of 13 segments: {log}"
+    );
+    assert_eq!(&std::fs::read(&out).unwrap()[1..4], b"PNG", "a PNG");
+}
+
+/// Windows rendered with --crop to EXR and merged equal the whole frame rendered at once, bit
+/// for bit; a generated model renders; bad crops, extensions and merges are errors that write
+/// nothing.
+#[test]
+fn crop_merge_generate_and_their_errors() {
+    let model = scratch("gen.hair", b"");
+    let log = ok_err(&[
+        "generate",
+        "-o",
+        path(&model),
+        "--strands",
+        "30",
+        "--segments",
+        "5",
+    ]);
+    assert!(log.contains("30 strands x 5 segments"), "{log}");
+    let render = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "render",
+            path(&model),
+            "-q",
+            "--width",
+            "24",
+            "--spp",
+            "2",
+            "--integrator",
+            "direct",
+            "-o",
+            path(out),
+        ];
+        args.extend_from_slice(extra);
+        ok_err(&args)
+    };
+    let whole = scratch("whole.exr", b"");
+    let log = render(&[], &whole);
+    assert!(log.contains("150 cylinders"), "30 x 5 segments: {log}");
+    let parts: Vec<PathBuf> = ["0,0,24,7", "0,7,10,18", "10,7,24,18"]
+        .iter()
+        .enumerate()
+        .map(|(i, crop)| {
+            let p = scratch(&format!("part{i}.exr"), b"");
+            render(&["--crop", crop], &p);
+            p
+        })
+        .collect();
+    let merged = scratch("merged.exr", b"");
+    let mut args = vec!["merge", "-o", path(&merged)];
+    args.extend(parts.iter().map(|p| path(p)));
+    ok_err(&args);
+    let read = |p: &Path| gencyl_render::film::Film::read_exr(p).unwrap();
+    let (a, b) = (read(&whole), read(&merged));
+    assert_eq!(a.frame, (24, 18), "frame size");
+    let bits =
+        |f: &gencyl_render::film::Film| f.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a), bits(&b), "merged windows equal the whole frame");
+
+    let nothing = scratch("nothing.png", b"");
+    std::fs::remove_file(&nothing).unwrap();
+    let err = fails(
+        &[
+            "render",
+            path(&model),
+            "--width",
+            "24",
+            "--crop",
+            "0,0,30,5",
+            "-o",
+            path(&nothing),
+        ],
+        None,
+    );
+    assert!(err.contains("--crop") && err.contains("past"), "{err}");
+    let err = fails(&["render", path(&model), "-o", "x.jpg"], None);
+    assert!(err.contains(".png or .exr"), "{err}");
+    let err = fails(
+        &[
+            "merge",
+            "-o",
+            path(&nothing),
+            path(&parts[0]),
+            path(&parts[0]),
+        ],
+        None,
+    );
+    assert!(err.contains("overlap"), "{err}");
+    let err = fails(
+        &[
+            "merge",
+            "-o",
+            path(&nothing),
+            path(&parts[0]),
+            path(&parts[1]),
+        ],
+        None,
+    );
+    assert!(err.contains("not covered"), "{err}");
+    let scene = scratch("missing-hair.toml", b"[[hair]]\nfile = \"nowhere.hair\"\n");
+    let err = fails(&["render", path(&scene), "-o", path(&nothing)], None);
+    assert!(
+        err.contains("missing-hair.toml:2:8: cannot read nowhere.hair"),
+        "{err}"
+    );
+    assert!(!nothing.exists(), "no image after an error");
+}

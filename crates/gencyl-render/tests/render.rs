@@ -321,3 +321,19 @@ fn threads_and_crop_windows_give_identical_pixels() {
     assert_eq!(merged.channels, whole_read.channels, "channels");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Every example scene under `examples/` loads (the ponytail's hair file included).
+#[test]
+fn example_scenes_load() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_some_and(|e| e == "toml") {
+            let d = SceneDescription::load(&p).unwrap_or_else(|e| panic!("{e}"));
+            assert!(!d.cylinders.is_empty(), "{} has fibers", p.display());
+            n += 1;
+        }
+    }
+    assert!(n >= 4, "the example scenes: {n}");
+}
