@@ -91,12 +91,12 @@ pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
     l * c.section().bounding_radius()
 }
 
-/// How finely to cut a cylinder into BVH pieces: about one piece per 8 radii of control
+/// How finely to cut a cylinder into BVH pieces: about one piece per 16 radii of control
 /// polygon length, as a level `l` (`2^l` pieces), at most [`MAX_LEVEL`].
 pub fn level_for(c: &GeneralizedCylinder) -> u32 {
     let p = c.axis().points;
     let length = (0..3).map(|i| (p[i + 1] - p[i]).length()).sum::<f64>();
-    let pieces = length / (8.0 * reach(c));
+    let pieces = length / (16.0 * reach(c));
     (0..=MAX_LEVEL)
         .find(|&l| (1u32 << l) as f64 >= pieces)
         .unwrap_or(MAX_LEVEL)
