@@ -720,8 +720,9 @@ impl Slabs {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampling::SampleRng as Rng;
     use crate::scene::{Scene, SceneHit, Scratch, sort_hits};
-    use crate::synth::{FiberParams, Rng, random_fibers, random_rays};
+    use crate::synth::{FiberParams, random_fibers, random_rays};
     use gencyl::Hit;
 
     #[test]
@@ -731,9 +732,9 @@ mod tests {
 
     #[test]
     fn outward_rounding_holds_the_value() {
-        let mut rng = Rng::new(7);
+        let mut rng = Rng::from_seed(7);
         for _ in 0..10_000 {
-            let x = (rng.f64() - 0.5) * 10f64.powi((rng.f64() * 40.0) as i32 - 20);
+            let x = (rng.uniform() - 0.5) * 10f64.powi((rng.uniform() * 40.0) as i32 - 20);
             assert!((down(x) as f64) <= x && (up(x) as f64) >= x, "{x}");
         }
         assert_eq!(up(1e300), f32::INFINITY, "beyond f32");
@@ -857,11 +858,11 @@ mod tests {
             .collect();
         let scene = Scene::new(cyls);
         let rays = random_rays(1500, 12, &params);
-        let mut rng = Rng::new(5);
+        let mut rng = Rng::from_seed(5);
         let (mut scratch, mut all) = (Scratch::default(), vec![]);
         let mut hits = 0;
         for (r, ray) in rays.iter().enumerate() {
-            let tmin = if r % 3 == 0 { rng.f64() * 2.0 } else { 0.0 };
+            let tmin = if r % 3 == 0 { rng.uniform() * 2.0 } else { 0.0 };
             // Also rays from inside the fibers' cube, and axis-parallel rays (zero direction
             // components, for the slab test's special case).
             let inside = rng.in_box(DVec3::ZERO, DVec3::ONE);

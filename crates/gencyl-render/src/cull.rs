@@ -291,7 +291,8 @@ fn segment_distance2(a: DVec2, b: DVec2) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::{FiberParams, Rng, random_fibers};
+    use crate::sampling::SampleRng as Rng;
+    use crate::synth::{FiberParams, random_fibers};
 
     #[test]
     fn never_rejects_a_ray_through_the_surface() {
@@ -305,12 +306,12 @@ mod tests {
             },
             4,
         );
-        let mut rng = Rng::new(8);
+        let mut rng = Rng::from_seed(8);
         let mut rejected_misses = 0;
         for spec in &specs {
             let c = spec.build().unwrap();
             for _ in 0..200 {
-                let p = c.surface_point(rng.f64(), rng.range(0.0, std::f64::consts::TAU));
+                let p = c.surface_point(rng.uniform(), rng.range(0.0, std::f64::consts::TAU));
                 let d = rng.unit_vector() * rng.range(0.1, 10.0);
                 let ray = Ray::new(p - rng.range(-3.0, 3.0) * d, d);
                 assert!(
@@ -404,7 +405,7 @@ mod tests {
             },
             6,
         );
-        let mut rng = Rng::new(9);
+        let mut rng = Rng::from_seed(9);
         for spec in &specs {
             let c = spec.build().unwrap();
             for l in 0..=MAX_LEVEL {

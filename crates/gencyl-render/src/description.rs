@@ -757,60 +757,10 @@ impl SceneDescription {
 
 fn build_light(l: &RawLight, table: Range<usize>) -> Result<Light, Problem> {
     let kind = l.kind.get_ref().as_str();
-    let light = match kind {
-        "directional" => {
-            let what = "a directional light";
-            not_for(&l.position, "position", what)?;
-            not_for(&l.intensity, "intensity", what)?;
-            not_for(&l.center, "center", what)?;
-            not_for(&l.radius, "radius", what)?;
-            not_for(&l.radiance, "radiance", what)?;
-            Light::Directional {
-                direction: direction(
-                    required(&l.direction, "direction", what, &table)?,
-                    "direction",
-                )?,
-                irradiance: colour(
-                    required(&l.irradiance, "irradiance", what, &table)?,
-                    "irradiance",
-                )?,
-            }
-        }
-        "point" => {
-            let what = "a point light";
-            not_for(&l.direction, "direction", what)?;
-            not_for(&l.irradiance, "irradiance", what)?;
-            not_for(&l.center, "center", what)?;
-            not_for(&l.radius, "radius", what)?;
-            not_for(&l.radiance, "radiance", what)?;
-            Light::Point {
-                position: vec3(required(&l.position, "position", what, &table)?, "position")?,
-                intensity: colour(
-                    required(&l.intensity, "intensity", what, &table)?,
-                    "intensity",
-                )?,
-            }
-        }
-        "sphere" => {
-            let what = "a sphere light";
-            not_for(&l.direction, "direction", what)?;
-            not_for(&l.irradiance, "irradiance", what)?;
-            not_for(&l.position, "position", what)?;
-            not_for(&l.intensity, "intensity", what)?;
-            Light::Sphere {
-                sphere: Sphere {
-                    center: vec3(required(&l.center, "center", what, &table)?, "center")?,
-                    radius: number(
-                        required(&l.radius, "radius", what, &table)?,
-                        "radius",
-                        0.0,
-                        f64::INFINITY,
-                        true,
-                    )?,
-                },
-                radiance: colour(required(&l.radiance, "radiance", what, &table)?, "radiance")?,
-            }
-        }
+    let allowed: &[&str] = match kind {
+        "directional" => &["direction", "irradiance"],
+        "point" => &["position", "intensity"],
+        "sphere" => &["center", "radius", "radiance"],
         other => {
             return Err((
                 l.kind.span(),
@@ -820,7 +770,79 @@ fn build_light(l: &RawLight, table: Range<usize>) -> Result<Light, Problem> {
             ));
         }
     };
-    Ok(light)
+    let what = format!("a {kind} light");
+    only_keys(
+        &[
+            ("direction", span_of(&l.direction)),
+            ("irradiance", span_of(&l.irradiance)),
+            ("position", span_of(&l.position)),
+            ("intensity", span_of(&l.intensity)),
+            ("center", span_of(&l.center)),
+            ("radius", span_of(&l.radius)),
+            ("radiance", span_of(&l.radiance)),
+        ],
+        allowed,
+        &what,
+    )?;
+    Ok(match kind {
+        "directional" => Light::Directional {
+            direction: direction(
+                required(&l.direction, "direction", &what, &table)?,
+                "direction",
+            )?,
+            irradiance: colour(
+                required(&l.irradiance, "irradiance", &what, &table)?,
+                "irradiance",
+            )?,
+        },
+        "point" => Light::Point {
+            position: vec3(
+                required(&l.position, "position", &what, &table)?,
+                "position",
+            )?,
+            intensity: colour(
+                required(&l.intensity, "intensity", &what, &table)?,
+                "intensity",
+            )?,
+        },
+        _ => Light::Sphere {
+            sphere: Sphere {
+                center: vec3(required(&l.center, "center", &what, &table)?, "center")?,
+                radius: number(
+                    required(&l.radius, "radius", &what, &table)?,
+                    "radius",
+                    0.0,
+                    f64::INFINITY,
+                    true,
+                )?,
+            },
+            radiance: colour(
+                required(&l.radiance, "radiance", &what, &table)?,
+                "radiance",
+            )?,
+        },
+    })
+}
+
+/// Where a key's value is, if it is there.
+fn span_of<T>(k: &Option<Spanned<T>>) -> Option<Range<usize>> {
+    k.as_ref().map(Spanned::span)
+}
+
+/// Every key present must be one `kind` takes: `keys` pairs names with where their values are.
+fn only_keys(
+    keys: &[(&str, Option<Range<usize>>)],
+    allowed: &[&str],
+    kind: &str,
+) -> Result<(), Problem> {
+    for (name, span) in keys {
+        if let Some(span) = span
+            && !allowed.contains(name)
+        {
+            return Err((span.clone(), format!("`{name}` does not apply to {kind}")));
+        }
+    }
+    Ok(())
 }
 
 fn build_environment(e: &RawEnvironment, table: Range<usize>) -> Result<Environment, Problem> {
@@ -874,31 +896,24 @@ fn build_material(m: &RawMaterial, table: Range<usize>) -> Result<(Material, f64
             ));
         }
     };
-    let present: [(&str, Option<Range<usize>>); 13] = [
-        ("albedo", m.albedo.as_ref().map(|x| x.span())),
-        ("diffuse", m.diffuse.as_ref().map(|x| x.span())),
-        ("specular", m.specular.as_ref().map(|x| x.span())),
-        ("exponent", m.exponent.as_ref().map(|x| x.span())),
-        ("eta", m.eta.as_ref().map(|x| x.span())),
-        ("sigma_a", m.sigma_a.as_ref().map(|x| x.span())),
-        ("melanin", m.melanin.as_ref().map(|x| x.span())),
-        ("pheomelanin", m.pheomelanin.as_ref().map(|x| x.span())),
-        ("color", m.color.as_ref().map(|x| x.span())),
-        ("beta_m", m.beta_m.as_ref().map(|x| x.span())),
-        ("beta_n", m.beta_n.as_ref().map(|x| x.span())),
-        ("alpha", m.alpha.as_ref().map(|x| x.span())),
-        ("xray_mu", None),
-    ];
-    for (name, span) in present {
-        if let Some(span) = span
-            && !allowed.contains(&name)
-        {
-            return Err((
-                span,
-                format!("`{name}` does not apply to a {kind} material"),
-            ));
-        }
-    }
+    only_keys(
+        &[
+            ("albedo", span_of(&m.albedo)),
+            ("diffuse", span_of(&m.diffuse)),
+            ("specular", span_of(&m.specular)),
+            ("exponent", span_of(&m.exponent)),
+            ("eta", span_of(&m.eta)),
+            ("sigma_a", span_of(&m.sigma_a)),
+            ("melanin", span_of(&m.melanin)),
+            ("pheomelanin", span_of(&m.pheomelanin)),
+            ("color", span_of(&m.color)),
+            ("beta_m", span_of(&m.beta_m)),
+            ("beta_n", span_of(&m.beta_n)),
+            ("alpha", span_of(&m.alpha)),
+        ],
+        allowed,
+        &format!("a {kind} material"),
+    )?;
     let opt_colour = |k: &Option<Spanned<Colour>>, name: &str, default: DVec3| match k {
         Some(c) => colour(c, name),
         None => Ok(default),

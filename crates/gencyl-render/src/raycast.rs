@@ -546,16 +546,17 @@ mod tests {
     #[test]
     fn extreme_scenes_do_not_panic() {
         // Scenes at scales from 1e-150 to 1e150, rays of any magnitude: no panic, no NaN.
-        use crate::synth::Rng;
-        let mut rng = Rng::new(77);
+        use crate::sampling::SampleRng as Rng;
+        let mut rng = Rng::from_seed(77);
         let mags = [
             0.0, 1e-300, 1e-150, 1e-20, 1e-3, 1.0, 1e3, 1e20, 1e150, 1e300,
         ];
-        let pick =
-            |rng: &mut Rng| mags[(rng.f64() * mags.len() as f64) as usize] * rng.range(-1.0, 1.0);
+        let pick = |rng: &mut Rng| {
+            mags[(rng.uniform() * mags.len() as f64) as usize] * rng.range(-1.0, 1.0)
+        };
         let mut built = 0;
         for _ in 0..100 {
-            let scale = [1e-150, 1e-20, 1.0, 1e20, 1e150][(rng.f64() * 5.0) as usize];
+            let scale = [1e-150, 1e-20, 1.0, 1e20, 1e150][(rng.uniform() * 5.0) as usize];
             let mut src = String::new();
             for _ in 0..3 {
                 let p: Vec<String> = (0..4)
@@ -571,7 +572,7 @@ mod tests {
                     r[0],
                     r[1]
                 ));
-                if rng.f64() < 0.1 {
+                if rng.uniform() < 0.1 {
                     src.push_str(&format!(
                         "minor_radius = [{:e}, {:e}]\nrotation = [{:e}, 1.0]\n",
                         r[1],
@@ -616,15 +617,15 @@ mod tests {
 
     #[test]
     fn garbage_never_panics_the_parsers() {
-        use crate::synth::Rng;
-        let mut rng = Rng::new(5);
+        use crate::sampling::SampleRng as Rng;
+        let mut rng = Rng::from_seed(5);
         let base = "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.1, 0.1]\nprofile = [[1,0],[1,1],[0,1],[-1,0],[-1,-1],[0,-1]]\n";
         let rays = "ox,oy,oz,dx,dy,dz\n1.5,0,1, 0,0,-1\n-1,0,0,1,0,0\n";
         for i in 0..3000 {
             let src = if i % 2 == 0 { base } else { rays };
             let mut bytes = src.as_bytes().to_vec();
-            for _ in 0..1 + (rng.f64() * 4.0) as usize {
-                let at = (rng.f64() * bytes.len() as f64) as usize;
+            for _ in 0..1 + (rng.uniform() * 4.0) as usize {
+                let at = (rng.uniform() * bytes.len() as f64) as usize;
                 match rng.next_u64() % 3 {
                     0 => bytes[at] = rng.next_u64() as u8,
                     1 => {

@@ -39,6 +39,28 @@ impl SampleRng {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
+    /// Uniform in `[a, b)`.
+    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.uniform()
+    }
+
+    /// Uniform in the box `[lo, hi)`.
+    pub fn in_box(&mut self, lo: DVec3, hi: DVec3) -> DVec3 {
+        DVec3::new(
+            self.range(lo.x, hi.x),
+            self.range(lo.y, hi.y),
+            self.range(lo.z, hi.z),
+        )
+    }
+
+    /// Uniform on the unit sphere.
+    pub fn unit_vector(&mut self) -> DVec3 {
+        let z = self.range(-1.0, 1.0);
+        let phi = self.range(0.0, std::f64::consts::TAU);
+        let s = (1.0 - z * z).sqrt();
+        DVec3::new(s * phi.cos(), s * phi.sin(), z)
+    }
+
     /// Two uniform numbers in `[0, 1)`.
     pub fn uniform2(&mut self) -> [f64; 2] {
         [self.uniform(), self.uniform()]

@@ -9,52 +9,7 @@ use std::fmt::Write as _;
 use gencyl::{BezierLoop, FiberSpec, Ray, Section};
 use glam::{DVec2, DVec3};
 
-/// A small, fast, seeded random number generator (SplitMix64).
-#[derive(Clone, Debug)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// A generator from a seed.
-    pub fn new(seed: u64) -> Self {
-        Rng(seed ^ 0x853c_49e6_748f_ea9b)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-
-    /// Uniform in `[a, b)`.
-    pub fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.f64()
-    }
-
-    /// Uniform in the box `[lo, hi)`.
-    pub fn in_box(&mut self, lo: DVec3, hi: DVec3) -> DVec3 {
-        DVec3::new(
-            self.range(lo.x, hi.x),
-            self.range(lo.y, hi.y),
-            self.range(lo.z, hi.z),
-        )
-    }
-
-    /// Uniform on the unit sphere.
-    pub fn unit_vector(&mut self) -> DVec3 {
-        let z = self.range(-1.0, 1.0);
-        let phi = self.range(0.0, std::f64::consts::TAU);
-        let s = (1.0 - z * z).sqrt();
-        DVec3::new(s * phi.cos(), s * phi.sin(), z)
-    }
-}
+use crate::sampling::SampleRng as Rng;
 
 /// What [`random_fibers`] makes.
 #[derive(Clone, Debug, PartialEq)]
@@ -94,7 +49,7 @@ impl Default for FiberParams {
 /// control points at its thirds moved by up to `bend * length` in random directions. Fibers
 /// whose axis would have a cusp are drawn again, so every spec builds.
 pub fn random_fibers(p: &FiberParams, seed: u64) -> Vec<FiberSpec> {
-    let mut rng = Rng::new(seed);
+    let mut rng = Rng::from_seed(seed);
     let (lo, hi) = (DVec3::splat(p.cube[0]), DVec3::splat(p.cube[1]));
     let mut out = Vec::with_capacity(p.count);
     while out.len() < p.count {
@@ -102,10 +57,10 @@ pub fn random_fibers(p: &FiberParams, seed: u64) -> Vec<FiberSpec> {
         let dir = rng.unit_vector();
         let p0 = mid - 0.5 * p.length * dir;
         let p3 = mid + 0.5 * p.length * dir;
-        let p1 = p0 + p.length * (dir / 3.0 + p.bend * rng.f64() * rng.unit_vector());
-        let p2 = p0 + p.length * (2.0 * dir / 3.0 + p.bend * rng.f64() * rng.unit_vector());
+        let p1 = p0 + p.length * (dir / 3.0 + p.bend * rng.uniform() * rng.unit_vector());
+        let p2 = p0 + p.length * (2.0 * dir / 3.0 + p.bend * rng.uniform() * rng.unit_vector());
         let mut spec = FiberSpec::round([p0, p1, p2, p3], p.radius);
-        let kind = rng.f64();
+        let kind = rng.uniform();
         if kind < p.elliptical_fraction {
             spec.major_radius = [p.radius, p.radius * rng.range(0.6, 1.0)];
             spec.minor_radius = [
@@ -116,7 +71,7 @@ pub fn random_fibers(p: &FiberParams, seed: u64) -> Vec<FiberSpec> {
         } else if kind < p.elliptical_fraction + p.profile_fraction {
             spec.section = Section::Loop(squarish_profile(rng.range(0.5, 1.0)));
         }
-        spec.caps = rng.f64() < 0.8;
+        spec.caps = rng.uniform() < 0.8;
         if spec.build().is_ok() {
             out.push(spec);
         }
@@ -151,7 +106,7 @@ pub fn squarish_profile(aspect: f64) -> BezierLoop {
 /// Random rays from the sphere of radius `2 * size` about the fibers' cube's centre, aimed at
 /// uniform points of the cube; directions have random lengths in `[0.5, 2)` of the distance.
 pub fn random_rays(count: usize, seed: u64, p: &FiberParams) -> Vec<Ray> {
-    let mut rng = Rng::new(seed ^ 0x5eed);
+    let mut rng = Rng::from_seed(seed ^ 0x5eed);
     let (lo, hi) = (DVec3::splat(p.cube[0]), DVec3::splat(p.cube[1]));
     let centre = 0.5 * (lo + hi);
     let size = (hi - lo).max_element().max(p.length);
@@ -223,7 +178,7 @@ pub fn hair_model(strands: usize, segments: usize, seed: u64) -> (Vec<Vec<DVec3>
     let points: Vec<Vec<DVec3>> = (0..strands)
         .into_par_iter()
         .map(|i| {
-            let mut rng = Rng::new(seed ^ (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            let mut rng = Rng::from_seed(seed ^ (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
             // A root on the scalp above y = -0.1, not on the face (z > 0.5, y < 0.6).
             let n = loop {
                 let n = rng.unit_vector();
@@ -293,8 +248,8 @@ mod tests {
 
     #[test]
     fn rng_is_uniformish() {
-        let mut r = Rng::new(1);
-        let mean = (0..10_000).map(|_| r.f64()).sum::<f64>() / 10_000.0;
+        let mut r = Rng::from_seed(1);
+        let mean = (0..10_000).map(|_| r.uniform()).sum::<f64>() / 10_000.0;
         assert!((mean - 0.5).abs() < 0.01, "mean {mean}");
         let v = r.unit_vector();
         assert!((v.length() - 1.0).abs() < 1e-12, "unit vector {v}");
