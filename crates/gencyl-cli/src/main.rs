@@ -40,6 +40,8 @@ enum Command {
     Merge(MergeArgs),
     /// Write a generated hair model (a head of wavy strands) as a `.hair` file.
     Generate(GenerateArgs),
+    /// Time named scenes: load, BVH build, memory per segment, camera rays per second.
+    Bench(BenchArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -107,6 +109,19 @@ struct GenerateArgs {
 }
 
 #[derive(Debug, clap::Args)]
+struct BenchArgs {
+    /// Also the generated 1.6-million-segment model (100,000 strands x 16; about 4 GB).
+    #[arg(long)]
+    large: bool,
+    /// The `ponytail` scene (the TressFX ponytail over a scalp).
+    #[arg(long, default_value = "examples/ponytail.toml")]
+    ponytail: PathBuf,
+    /// Camera rays per scene (a 4:3 image of about this many pixels, one ray each).
+    #[arg(long, default_value_t = 76_800)]
+    rays: u32,
+}
+
+#[derive(Debug, clap::Args)]
 struct RaycastArgs {
     /// The scene file (TOML, `[[cylinder]]` tables).
     scene: PathBuf,
@@ -163,6 +178,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => render_command(args),
         Command::Merge(args) => merge_command(args),
         Command::Generate(args) => generate_command(args),
+        Command::Bench(args) => bench_command(args),
     }
 }
 
@@ -325,6 +341,82 @@ fn generate_command(args: GenerateArgs) -> Result<()> {
         bytes.len(),
         t0.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+fn bench_command(args: BenchArgs) -> Result<()> {
+    let width = ((args.rays as f64 * 4.0 / 3.0).sqrt().round() as u32).max(4);
+    let height = (width * 3 / 4).max(3);
+    println!("scene,segments,load_s,bvh_s,bytes_per_segment,threads,rays,rays_per_s,hit_fraction");
+    let mut scenes: Vec<(&str, Box<dyn Fn() -> Result<SceneDescription>>)> = vec![
+        ("default", Box::new(|| Ok(render::default_scene()))),
+        (
+            "ponytail",
+            Box::new(|| Ok(SceneDescription::load(&args.ponytail)?)),
+        ),
+    ];
+    if args.large {
+        scenes.push((
+            "generated-1.6M",
+            Box::new(|| {
+                let (strands, thickness) = synth::hair_model(100_000, 16, 1);
+                let bytes = hair::write_hair(&strands, Some(&thickness), "bench");
+                let path =
+                    std::env::temp_dir().join(format!("gencyl-bench-{}.hair", std::process::id()));
+                std::fs::write(&path, bytes)?;
+                let d = SceneDescription::from_hair_file(&path, None).map_err(anyhow::Error::msg);
+                std::fs::remove_file(&path)?;
+                d
+            }),
+        ));
+    }
+    for (name, load) in scenes {
+        let t0 = Instant::now();
+        let desc = load()?;
+        let t1 = Instant::now();
+        let camera = desc.camera;
+        let world = World::new(desc);
+        let t2 = Instant::now();
+        let n = world.scene.cylinders().len();
+        let mut camera =
+            camera.unwrap_or_else(|| render::framed_camera(world.bounds(), width, height));
+        camera.width = width;
+        camera.height = height;
+        let rays: Vec<gencyl::Ray> = (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| camera.ray(x as f64 + 0.5, y as f64 + 0.5))
+            .collect();
+        for threads in [1, rayon::current_num_threads()] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()?;
+            let start = Instant::now();
+            let hits: usize = pool.install(|| {
+                use rayon::prelude::*;
+                rays.par_chunks(256)
+                    .map_init(gencyl_render::scene::Scratch::default, |scratch, chunk| {
+                        chunk
+                            .iter()
+                            .filter(|r| world.intersect(r, 0.0, f64::INFINITY, scratch).is_some())
+                            .count()
+                    })
+                    .sum()
+            });
+            let secs = start.elapsed().as_secs_f64();
+            println!(
+                "{name},{n},{:.3},{:.3},{:.0},{threads},{},{:.0},{:.3}",
+                (t1 - t0).as_secs_f64(),
+                (t2 - t1).as_secs_f64(),
+                world.scene.memory_bytes() as f64 / n.max(1) as f64,
+                rays.len(),
+                rays.len() as f64 / secs,
+                hits as f64 / rays.len() as f64
+            );
+            if threads == rayon::current_num_threads() {
+                break;
+            }
+        }
+    }
     Ok(())
 }
 
