@@ -348,7 +348,8 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     let width = ((args.rays as f64 * 4.0 / 3.0).sqrt().round() as u32).max(4);
     let height = (width * 3 / 4).max(3);
     println!("scene,segments,load_s,bvh_s,bytes_per_segment,threads,rays,rays_per_s,hit_fraction");
-    let mut scenes: Vec<(&str, Box<dyn Fn() -> Result<SceneDescription>>)> = vec![
+    type Loader<'a> = Box<dyn Fn() -> Result<SceneDescription> + 'a>;
+    let mut scenes: Vec<(&str, Loader)> = vec![
         ("default", Box::new(|| Ok(render::default_scene()))),
         (
             "ponytail",

@@ -575,13 +575,23 @@ fn crop_merge_generate_and_their_errors() {
 #[test]
 fn bench_reports_named_scenes() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/ponytail.toml");
-    let out = ok(&["bench", "--rays", "300", "--ponytail", path(&scene)], None);
-    let rows: Vec<Vec<&str>> = out.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let out = ok(
+        &["bench", "--rays", "300", "--ponytail", path(&scene)],
+        None,
+    );
+    let rows: Vec<Vec<&str>> = out
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
     assert!(rows.len() >= 2, "rows: {out}");
     for r in &rows {
         assert_eq!(r.len(), 9, "columns: {r:?}");
         let rate: f64 = r[7].parse().unwrap();
         assert!(rate > 0.0 && rate.is_finite(), "rays per second: {r:?}");
     }
-    assert!(rows.iter().any(|r| r[0] == "ponytail" && r[1] == "73995"), "{out}");
+    assert!(
+        rows.iter().any(|r| r[0] == "ponytail" && r[1] == "73995"),
+        "{out}"
+    );
 }

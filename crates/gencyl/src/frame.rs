@@ -74,14 +74,14 @@ impl Framing {
 }
 
 /// Below this `|a' x a''| / (|a'| max |a''|)` the Frenet normal at a point is rounding noise.
-const FRENET_DEGENERATE: f64 = 1e-9;
+pub(crate) const FRENET_DEGENERATE: f64 = 1e-9;
 
 /// How far from `u` the Frenet frame standing for `u` is taken: 0, or `1e-7` inward where
 /// `a' x a''` is negligible against `|a'| max|a''|` (`a''` is linear, so its largest length is
 /// at an end). That happens at inflections and at the root and tip of a strand, whose
 /// reflected end points make `a'' = 0` there exactly in theory and rounding noise in practice:
 /// the noise would turn the end cap against the side surface.
-fn frenet_shift(axis: &CubicBezier, u: f64) -> f64 {
+pub(crate) fn frenet_shift(axis: &CubicBezier, u: f64) -> f64 {
     let d1 = axis.d1(u);
     let scale = d1.length() * axis.d2(0.0).length().max(axis.d2(1.0).length());
     if d1.cross(axis.d2(u)).length() > FRENET_DEGENERATE * scale {

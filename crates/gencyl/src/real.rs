@@ -6,7 +6,10 @@
 //! - [`Dual`] for exact derivatives (forward-mode automatic differentiation; nest it for higher
 //!   derivatives),
 //! - [`Interval`] for guaranteed enclosures over a parameter range, which is what lets the root
-//!   finders prove that a range holds no root, or exactly one.
+//!   finders prove that a range holds no root, or exactly one,
+//! - [`Taylor`] for guaranteed enclosures that are tight to second order in the range's width
+//!   (first-order Taylor models with rounding-safe remainders); `Dual<Taylor>` encloses a
+//!   function and its derivative at once, for the root isolator.
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -30,6 +33,10 @@ pub trait Real:
     fn sin(self) -> Self;
     /// Cosine.
     fn cos(self) -> Self;
+    /// `(sin, cos)`, sharing the work where a type can.
+    fn sin_cos(self) -> (Self, Self) {
+        (self.sin(), self.cos())
+    }
     /// `self * self`; intervals give the tight (non-negative) square.
     fn sqr(self) -> Self {
         self * self
@@ -38,30 +45,49 @@ pub trait Real:
     fn scale(self, k: f64) -> Self {
         self * Self::cst(k)
     }
+    /// Whether values enclose sets (intervals, and dual numbers of them) rather than points:
+    /// constants such a computation needs must then be enclosures too (see [`Real::lift`]).
+    const ENCLOSURE: bool = false;
+    /// A constant known only as an enclosure: `x` itself for [`Real::ENCLOSURE`] types, its
+    /// midpoint otherwise.
+    fn lift(x: Interval) -> Self {
+        Self::cst(x.value())
+    }
+    /// The cubic `k0 + k1 t + k2 t^2 + k3 t^3` at `t = self - m`, for enclosures `k` of its
+    /// coefficients (say a cubic's Taylor coefficients at `m`). Horner's rule by default;
+    /// [`Taylor`] builds its model directly when `m` is its centre.
+    fn cubic_at(self, m: f64, k: [Interval; 4]) -> Self {
+        let t = self - Self::cst(m);
+        Self::lift(k[0]) + t * (Self::lift(k[1]) + t * (Self::lift(k[2]) + t * Self::lift(k[3])))
+    }
 }
 
 impl Real for f64 {
-    #[inline]
+    #[inline(always)]
     fn cst(x: f64) -> Self {
         x
     }
-    #[inline]
+    #[inline(always)]
     fn value(self) -> f64 {
         self
     }
-    #[inline]
+    #[inline(always)]
     fn sqrt(self) -> Self {
         f64::sqrt(self)
     }
-    #[inline]
+    #[inline(always)]
     fn sin(self) -> Self {
         f64::sin(self)
     }
-    #[inline]
+    #[inline(always)]
     fn cos(self) -> Self {
         f64::cos(self)
     }
-    #[inline]
+    #[inline(always)]
+    fn sin_cos(self) -> (Self, Self) {
+        f64::sin_cos(self)
+    }
+    #[inline(always)]
     fn scale(self, k: f64) -> Self {
         self * k
     }
@@ -89,7 +115,7 @@ impl<T: Real> Dual<T> {
 
 impl<T: Real> Add for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         Dual {
             v: self.v + o.v,
@@ -99,7 +125,7 @@ impl<T: Real> Add for Dual<T> {
 }
 impl<T: Real> Sub for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Dual {
             v: self.v - o.v,
@@ -109,7 +135,7 @@ impl<T: Real> Sub for Dual<T> {
 }
 impl<T: Real> Mul for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Dual {
             v: self.v * o.v,
@@ -120,7 +146,7 @@ impl<T: Real> Mul for Dual<T> {
 impl<T: Real> Div for Dual<T> {
     type Output = Self;
     /// `(f/g)' = (f' g - f g') / g^2`
-    #[inline]
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
         let v = self.v / o.v;
         Dual {
@@ -131,7 +157,7 @@ impl<T: Real> Div for Dual<T> {
 }
 impl<T: Real> Neg for Dual<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn neg(self) -> Self {
         Dual {
             v: -self.v,
@@ -141,18 +167,35 @@ impl<T: Real> Neg for Dual<T> {
 }
 
 impl<T: Real> Real for Dual<T> {
-    #[inline]
+    const ENCLOSURE: bool = T::ENCLOSURE;
+    #[inline(always)]
     fn cst(x: f64) -> Self {
         Dual {
             v: T::cst(x),
             d: T::cst(0.0),
         }
     }
-    #[inline]
+    #[inline(always)]
+    fn lift(x: Interval) -> Self {
+        Dual {
+            v: T::lift(x),
+            d: T::cst(0.0),
+        }
+    }
+    /// The chain rule: `p(x)' = p'(x) x'`, with `p'` the derivative cubic.
+    #[inline(always)]
+    fn cubic_at(self, m: f64, k: [Interval; 4]) -> Self {
+        let dk = [k[1], k[2].scale(2.0), k[3].scale(3.0), Interval::cst(0.0)];
+        Dual {
+            v: self.v.cubic_at(m, k),
+            d: self.v.cubic_at(m, dk) * self.d,
+        }
+    }
+    #[inline(always)]
     fn value(self) -> f64 {
         self.v.value()
     }
-    #[inline]
+    #[inline(always)]
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
         Dual {
@@ -160,28 +203,42 @@ impl<T: Real> Real for Dual<T> {
             d: self.d / (s + s),
         }
     }
-    #[inline]
+    #[inline(always)]
     fn sin(self) -> Self {
         Dual {
             v: self.v.sin(),
             d: self.d * self.v.cos(),
         }
     }
-    #[inline]
+    #[inline(always)]
     fn cos(self) -> Self {
         Dual {
             v: self.v.cos(),
             d: -(self.d * self.v.sin()),
         }
     }
-    #[inline]
+    #[inline(always)]
+    fn sin_cos(self) -> (Self, Self) {
+        let (s, c) = self.v.sin_cos();
+        (
+            Dual {
+                v: s,
+                d: self.d * c,
+            },
+            Dual {
+                v: c,
+                d: -(self.d * s),
+            },
+        )
+    }
+    #[inline(always)]
     fn sqr(self) -> Self {
         Dual {
             v: self.v.sqr(),
             d: (self.v * self.d).scale(2.0),
         }
     }
-    #[inline]
+    #[inline(always)]
     fn scale(self, k: f64) -> Self {
         Dual {
             v: self.v.scale(k),
@@ -209,7 +266,7 @@ impl Interval {
     };
 
     /// `[lo, hi]`, widened by one ulp each way; NaN bounds give [`Interval::ENTIRE`].
-    #[inline]
+    #[inline(always)]
     pub fn new(lo: f64, hi: f64) -> Self {
         if lo.is_nan() || hi.is_nan() {
             Self::ENTIRE
@@ -222,56 +279,102 @@ impl Interval {
     }
 
     /// The exact interval `[lo, hi]` (no widening).
-    #[inline]
+    #[inline(always)]
     pub fn exact(lo: f64, hi: f64) -> Self {
         Interval { lo, hi }
     }
 
     /// Whether `x` lies in the interval.
-    #[inline]
+    #[inline(always)]
     pub fn contains(self, x: f64) -> bool {
         self.lo <= x && x <= self.hi
     }
 
     /// Whether the interval holds only strictly positive, or only strictly negative, numbers.
-    #[inline]
+    #[inline(always)]
     pub fn excludes_zero(self) -> bool {
         self.lo > 0.0 || self.hi < 0.0
     }
 
     /// `hi - lo`.
-    #[inline]
+    #[inline(always)]
     pub fn width(self) -> f64 {
         self.hi - self.lo
     }
 }
 
-#[inline]
-fn min4(a: f64, b: f64, c: f64, d: f64) -> f64 {
-    a.min(b).min(c.min(d))
+/// Outward rounding of one bound: `down(x) <= pred(x)`, the largest `f64` below `x`, so
+/// `down(x)` is below every real number that rounds to `x` (and `up(x)`, symmetrically, above).
+///
+/// Proof: `x - pred(x)`, the spacing of the `f64`s just below `x`, is at most `2^-52 |x|` for
+/// normal `x` and `2^-1074` (the smallest subnormal) otherwise. The step
+/// `s = fl(|x| 2^-52) + 2^-1074` is at least both: the product is exact unless it is
+/// subnormal, where it errs by at most `2^-1075 < 2^-1074`, and a sum of two subnormal
+/// multiples of `2^-1074` is exact. So the real `x - s <= pred(x)`, and rounding to nearest is
+/// monotone and leaves `pred(x)` fixed: `fl(x - s) <= pred(x)`. A real `z` that rounds to `x`
+/// lies strictly above `pred(x)`. At most two ulps below `x`, without the branches of
+/// `f64::next_down`. `down(+inf)` and `up(-inf)` are NaN, which callers turn into
+/// [`Interval::ENTIRE`].
+#[inline(always)]
+fn down(x: f64) -> f64 {
+    x - (x.abs() * f64::EPSILON + TINY)
 }
-#[inline]
+/// See [`down`].
+#[inline(always)]
+fn up(x: f64) -> f64 {
+    x + (x.abs() * f64::EPSILON + TINY)
+}
+/// The smallest positive subnormal, `2^-1074`.
+const TINY: f64 = f64::from_bits(1);
+
+/// `[down(lo), up(hi)]`, or [`Interval::ENTIRE`] when a bound is NaN or `probe` is (callers
+/// pass a sum of the candidate bounds, NaN when one is: `0 * inf` or `inf - inf`).
+#[inline(always)]
+fn rounded(lo: f64, hi: f64, probe: f64) -> Interval {
+    let (lo, hi) = (down(lo), up(hi));
+    // lo - hi is NaN exactly when a bound is (lo = hi = -inf cannot happen: up(-inf) is NaN).
+    if (probe + (lo - hi)).is_nan() {
+        Interval::ENTIRE
+    } else {
+        Interval { lo, hi }
+    }
+}
+
+/// `min` and `max` of numbers known not to be NaN: one instruction each, unlike `f64::min`.
+#[inline(always)]
+fn fmin(a: f64, b: f64) -> f64 {
+    if a < b { a } else { b }
+}
+#[inline(always)]
+fn fmax(a: f64, b: f64) -> f64 {
+    if a > b { a } else { b }
+}
+#[inline(always)]
+fn min4(a: f64, b: f64, c: f64, d: f64) -> f64 {
+    fmin(fmin(a, b), fmin(c, d))
+}
+#[inline(always)]
 fn max4(a: f64, b: f64, c: f64, d: f64) -> f64 {
-    a.max(b).max(c.max(d))
+    fmax(fmax(a, b), fmax(c, d))
 }
 
 impl Add for Interval {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
-        Interval::new(self.lo + o.lo, self.hi + o.hi)
+        rounded(self.lo + o.lo, self.hi + o.hi, 0.0)
     }
 }
 impl Sub for Interval {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
-        Interval::new(self.lo - o.hi, self.hi - o.lo)
+        rounded(self.lo - o.hi, self.hi - o.lo, 0.0)
     }
 }
 impl Mul for Interval {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         let (a, b, c, d) = (
             self.lo * o.lo,
@@ -279,16 +382,14 @@ impl Mul for Interval {
             self.hi * o.lo,
             self.hi * o.hi,
         );
-        // 0 * inf is NaN; the true product set is unbounded only if a factor is.
-        if a.is_nan() || b.is_nan() || c.is_nan() || d.is_nan() {
-            return Interval::ENTIRE;
-        }
-        Interval::new(min4(a, b, c, d), max4(a, b, c, d))
+        // 0 * inf is NaN (the true product set is unbounded only if a factor is); the sum
+        // carries a NaN product into the probe, which min and max would drop.
+        rounded(min4(a, b, c, d), max4(a, b, c, d), (a + b) + (c + d))
     }
 }
 impl Div for Interval {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
         if !o.excludes_zero() {
             return Interval::ENTIRE;
@@ -299,15 +400,12 @@ impl Div for Interval {
             self.hi / o.lo,
             self.hi / o.hi,
         );
-        if a.is_nan() || b.is_nan() || c.is_nan() || d.is_nan() {
-            return Interval::ENTIRE;
-        }
-        Interval::new(min4(a, b, c, d), max4(a, b, c, d))
+        rounded(min4(a, b, c, d), max4(a, b, c, d), (a + b) + (c + d))
     }
 }
 impl Neg for Interval {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn neg(self) -> Self {
         Interval {
             lo: -self.hi,
@@ -317,20 +415,25 @@ impl Neg for Interval {
 }
 
 impl Real for Interval {
-    #[inline]
+    const ENCLOSURE: bool = true;
+    #[inline(always)]
     fn cst(x: f64) -> Self {
         Interval { lo: x, hi: x }
     }
-    #[inline]
+    #[inline(always)]
+    fn lift(x: Interval) -> Self {
+        x
+    }
+    #[inline(always)]
     fn value(self) -> f64 {
         0.5 * (self.lo + self.hi)
     }
-    #[inline]
+    #[inline(always)]
     fn sqrt(self) -> Self {
         // Rounding can push a sum of squares a hair below zero; the exact value is not.
         Interval::new(self.lo.max(0.0).sqrt(), self.hi.max(0.0).sqrt())
     }
-    #[inline]
+    #[inline(always)]
     fn sin(self) -> Self {
         (self - Interval::cst(std::f64::consts::FRAC_PI_2)).cos()
     }
@@ -355,14 +458,311 @@ impl Real for Interval {
         // libm's cos is faithful to about an ulp; widen by a few.
         Interval::new((lo - 4e-16).max(-1.0), (hi + 4e-16).min(1.0))
     }
-    #[inline]
+    #[inline(always)]
     fn sqr(self) -> Self {
         let (a, b) = (self.lo * self.lo, self.hi * self.hi);
-        if self.lo > 0.0 || self.hi < 0.0 {
-            Interval::new(a.min(b), a.max(b))
+        let lo = if self.lo > 0.0 || self.hi < 0.0 {
+            fmin(a, b)
         } else {
-            Interval::new(0.0, a.max(b))
+            0.0
+        };
+        rounded(lo, fmax(a, b), a + b)
+    }
+    #[inline(always)]
+    fn scale(self, k: f64) -> Self {
+        let (a, b) = (self.lo * k, self.hi * k);
+        let (lo, hi) = if k >= 0.0 { (a, b) } else { (b, a) };
+        rounded(lo, hi, k)
+    }
+}
+
+/// A first-order Taylor model in one variable: the set of functions
+/// `c + s t + r(t)` with `|r(t)| <= rho` for `t in [-h, h]`.
+///
+/// Evaluating a function with the variable `u = m + t` as a `Taylor` ([`Taylor::var`]) gives an
+/// enclosure of the function over `[m - h, m + h]` that keeps its linear dependence on `t`
+/// exactly and bounds only the rest: products of two models (`t^2` terms), the curvature of
+/// `sqrt`, `1/x`, `sin` and `cos` between the centre and the ends, and every rounding error.
+/// The remainder shrinks like `h^2`, so the enclosure of a smooth function is its true range to
+/// second order, where interval arithmetic overestimates to first order by the dependency
+/// problem. In a [`Dual`] it encloses the derivative the same way, which is what the root
+/// isolator needs to prove a cell monotone. The bookkeeping is plain `f64` arithmetic, about as
+/// costly as an [`Interval`] operation.
+///
+/// Rounding: `c` and `s` are computed to nearest, and each operation adds a bound on their
+/// rounding errors to `rho` (4u times the magnitude of the rounded terms, u = 2^-53, against at
+/// most 3 roundings each). `rho` itself is a sum of products of non-negative terms, each
+/// computed to nearest from computed non-negative terms, fewer than 40 roundings in all, so it
+/// is low by less than a factor `1 - 40u`; each operation multiplies it by `1 + 2^-44` and adds
+/// `1e-300` (underflow), which more than covers that. `sqrt` is correctly rounded (IEEE 754);
+/// `sin` and `cos` are taken to be within `4e-16` of the truth, as in [`Interval`]'s `cos`.
+/// NaN and infinite parts propagate and make the enclosure the whole line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Taylor {
+    /// The value at `t = 0`.
+    pub c: f64,
+    /// The slope in `t`.
+    pub s: f64,
+    /// The remainder bound.
+    pub rho: f64,
+    /// The half-width of the domain of `t` (0 for constants).
+    pub h: f64,
+}
+
+/// Absolute error bound of `libm`'s `sin` and `cos` (a few ulps of 1).
+const TRIG_ERR: f64 = 4e-16;
+/// Four units in the last place, relative: `2^-51`.
+const U4: f64 = 4.0 * 0.5 * f64::EPSILON;
+
+impl Taylor {
+    /// The whole real line.
+    pub const ENTIRE: Taylor = Taylor {
+        c: 0.0,
+        s: 0.0,
+        rho: f64::INFINITY,
+        h: 0.0,
+    };
+
+    /// The variable `u` over `[lo, hi]`: `m + t` with `m` the midpoint and `h` at least
+    /// `hi - m` and `m - lo`.
+    pub fn var(lo: f64, hi: f64) -> Self {
+        let m = 0.5 * (lo + hi);
+        let h = up((hi - m).max(m - lo));
+        Taylor::finish(m, 1.0, 0.0, h)
+    }
+
+    /// Rounds the remainder up (see the type's docs).
+    ///
+    /// Non-finite parts are not normalised here: NaN and infinities propagate through the
+    /// arithmetic (every comparison with NaN fails, so `sqrt` and `1/x` give up), and
+    /// [`Taylor::enclosure`] turns them into the whole line.
+    #[inline(always)]
+    fn finish(c: f64, s: f64, rho: f64, h: f64) -> Self {
+        const GROW: f64 = 1.0 + 1.0 / (1u64 << 44) as f64;
+        Taylor {
+            c,
+            s,
+            rho: rho * GROW + 1e-300,
+            h,
         }
+    }
+
+    /// A bound on `|s t + r|`, the distance of the model's values from `c`, rounded up.
+    #[inline(always)]
+    fn spread(self) -> f64 {
+        (self.s.abs() * self.h + self.rho) * (1.0 + 1e-15)
+    }
+
+    /// An interval holding every value of the model.
+    #[inline(always)]
+    pub fn enclosure(self) -> Interval {
+        let w = self.spread();
+        rounded(self.c - w, self.c + w, self.c + w)
+    }
+
+    /// `f(self)` for `f` with value `f0`, slope `f1` (each within `err` of `f(c)`, `f'(c)`) at
+    /// `c`, and `|f''| <= f2` between `c` and the model's values: Taylor's theorem,
+    /// `f(c + d) = f(c) + f'(c) d + f''(xi) d^2 / 2` with `d = s t + r`.
+    ///
+    /// `range` encloses `f` over the model's values. Where the model is wide against the
+    /// curvature of `f` (`1/x` or `sqrt` near 0) the remainder alone can exceed it; then the
+    /// result is that interval as a constant model, so a model is never much wider than interval
+    /// arithmetic would be. (Comparing the whole spread instead would also discard the linear
+    /// part where it is large but exact, and it is what cancels in, say, `x^2 / x^2`.)
+    #[inline(always)]
+    fn compose(self, f0: f64, f1: f64, f2: f64, err: f64, range: Interval) -> Self {
+        let s = f1 * self.s;
+        let w = self.spread();
+        let rho = (f1.abs() + err) * self.rho
+            + 0.5 * f2 * w * w
+            + err * (1.0 + self.s.abs() * self.h)
+            + U4 * (f0.abs() + s.abs() * self.h);
+        if rho > 0.5 * range.width() {
+            return Taylor {
+                h: self.h,
+                ..Taylor::lift(range)
+            };
+        }
+        Taylor::finish(f0, s, rho, self.h)
+    }
+
+    /// `1 / self`.
+    #[inline(always)]
+    fn recip(self) -> Self {
+        let lo = down(self.c.abs() - self.spread());
+        if !(lo > 0.0) {
+            return Taylor {
+                h: self.h,
+                ..Self::ENTIRE
+            };
+        }
+        let r = 1.0 / self.c;
+        let hi = up(self.c.abs() + self.spread());
+        let mag = Interval {
+            lo: down(1.0 / hi),
+            hi: up(1.0 / lo),
+        };
+        let range = if self.c > 0.0 { mag } else { -mag };
+        // (1/x)' = -1/x^2, |(1/x)''| = 2/|x|^3 <= 2/lo^3.
+        self.compose(r, -(r * r), 2.0 / (lo * lo * lo), U4 * r * r, range)
+    }
+}
+
+impl Add for Taylor {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        let h = fmax(self.h, o.h);
+        let (c, s) = (self.c + o.c, self.s + o.s);
+        Taylor::finish(c, s, self.rho + o.rho + U4 * (c.abs() + s.abs() * h), h)
+    }
+}
+impl Sub for Taylor {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        let h = fmax(self.h, o.h);
+        let (c, s) = (self.c - o.c, self.s - o.s);
+        Taylor::finish(c, s, self.rho + o.rho + U4 * (c.abs() + s.abs() * h), h)
+    }
+}
+impl Mul for Taylor {
+    type Output = Self;
+    /// `(a0 + a1 t + ra)(b0 + b1 t + rb) = a0 b0 + (a0 b1 + a1 b0) t + a1 b1 t^2 + ...`, with
+    /// `a1 b1 t^2 in a1 b1 [0, h^2]` as its midpoint plus a remainder.
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        let h = fmax(self.h, o.h);
+        let c0 = self.c * o.c;
+        let (s1, s2) = (self.c * o.s, self.s * o.c);
+        let shift = 0.5 * (self.s * o.s) * (h * h);
+        let c = c0 + shift;
+        let ra = self.c.abs() + self.s.abs() * h;
+        let rb = o.c.abs() + o.s.abs() * h;
+        let rho = shift.abs()
+            + ra * o.rho
+            + rb * self.rho
+            + self.rho * o.rho
+            + U4 * (c.abs() + c0.abs() + shift.abs() + (s1.abs() + s2.abs()) * h);
+        Taylor::finish(c, s1 + s2, rho, h)
+    }
+}
+impl Div for Taylor {
+    type Output = Self;
+    /// `self * (1 / o)`.
+    #[inline(always)]
+    #[allow(clippy::suspicious_arithmetic_impl)]
+    fn div(self, o: Self) -> Self {
+        self * o.recip()
+    }
+}
+impl Neg for Taylor {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Taylor {
+            c: -self.c,
+            s: -self.s,
+            ..self
+        }
+    }
+}
+
+impl Real for Taylor {
+    const ENCLOSURE: bool = true;
+    #[inline(always)]
+    fn cst(x: f64) -> Self {
+        Taylor {
+            c: x,
+            s: 0.0,
+            rho: 0.0,
+            h: 0.0,
+        }
+    }
+    #[inline(always)]
+    fn lift(x: Interval) -> Self {
+        let c = x.value();
+        Taylor::finish(c, 0.0, fmax(x.hi - c, c - x.lo), 0.0)
+    }
+    /// At the model's centre (`m = c`, the usual case) directly: `p(c + d) = k0 + k1 d +
+    /// p''(xi) d^2 / 2` with `|p''| <= 2|k2| + 6|k3| |d|` and `|d| <= |s| h + rho`; elsewhere by
+    /// Horner's rule.
+    #[inline(always)]
+    fn cubic_at(self, m: f64, k: [Interval; 4]) -> Self {
+        if self.c != m {
+            let t = self - Self::cst(m);
+            return Self::lift(k[0])
+                + t * (Self::lift(k[1]) + t * (Self::lift(k[2]) + t * Self::lift(k[3])));
+        }
+        let mag = |x: Interval| fmax(x.lo.abs(), x.hi.abs());
+        let (f0, f1) = (k[0].value(), k[1].value());
+        let err = fmax(
+            fmax(k[0].hi - f0, f0 - k[0].lo),
+            fmax(k[1].hi - f1, f1 - k[1].lo),
+        );
+        let f2 = 2.0 * mag(k[2]) + 6.0 * mag(k[3]) * self.spread();
+        self.compose(f0, f1, f2, err, Interval::ENTIRE)
+    }
+    #[inline(always)]
+    fn value(self) -> f64 {
+        self.c
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        let lo = down(self.c - self.spread());
+        if !(lo > 0.0) {
+            return Taylor {
+                h: self.h,
+                ..Self::ENTIRE
+            };
+        }
+        let r = self.c.sqrt();
+        let range = Interval {
+            lo: down(lo.sqrt()),
+            hi: up(up(self.c + self.spread()).sqrt()),
+        };
+        // sqrt' = 1/(2 sqrt), |sqrt''| = 1/(4 x^1.5) <= 1/(4 lo sqrt(lo)).
+        let f1 = 0.5 / r;
+        self.compose(r, f1, 0.25 / (lo * lo.sqrt()), U4 * (r + f1), range)
+    }
+    #[inline(always)]
+    fn sin(self) -> Self {
+        self.sin_cos().0
+    }
+    #[inline(always)]
+    fn cos(self) -> Self {
+        self.sin_cos().1
+    }
+    #[inline(always)]
+    fn sin_cos(self) -> (Self, Self) {
+        let (s, c) = self.c.sin_cos();
+        let unit = Interval { lo: -1.0, hi: 1.0 };
+        (
+            self.compose(s, c, 1.0, TRIG_ERR, unit),
+            self.compose(c, -s, 1.0, TRIG_ERR, unit),
+        )
+    }
+    #[inline(always)]
+    fn sqr(self) -> Self {
+        let h = self.h;
+        let c0 = self.c * self.c;
+        let s = 2.0 * self.c * self.s;
+        let shift = 0.5 * (self.s * self.s) * (h * h);
+        let c = c0 + shift;
+        let ra = self.c.abs() + self.s.abs() * h;
+        let rho =
+            shift + 2.0 * ra * self.rho + self.rho * self.rho + U4 * (c + c0 + shift + s.abs() * h);
+        Taylor::finish(c, s, rho, h)
+    }
+    #[inline(always)]
+    fn scale(self, k: f64) -> Self {
+        let (c, s) = (self.c * k, self.s * k);
+        Taylor::finish(
+            c,
+            s,
+            self.rho * k.abs() + U4 * (c.abs() + s.abs() * self.h),
+            self.h,
+        )
     }
 }
 
@@ -388,12 +788,12 @@ pub struct V3<T> {
 
 impl<T: Real> V2<T> {
     /// `(x, y)`.
-    #[inline]
+    #[inline(always)]
     pub fn new(x: T, y: T) -> Self {
         V2 { x, y }
     }
     /// Lifts a constant `f64` vector.
-    #[inline]
+    #[inline(always)]
     pub fn cst(p: glam::DVec2) -> Self {
         V2 {
             x: T::cst(p.x),
@@ -401,17 +801,17 @@ impl<T: Real> V2<T> {
         }
     }
     /// The dot product.
-    #[inline]
+    #[inline(always)]
     pub fn dot(self, o: Self) -> T {
         self.x * o.x + self.y * o.y
     }
     /// `|self|^2`.
-    #[inline]
+    #[inline(always)]
     pub fn norm2(self) -> T {
         self.x.sqr() + self.y.sqr()
     }
     /// Representative values.
-    #[inline]
+    #[inline(always)]
     pub fn value(self) -> glam::DVec2 {
         glam::DVec2::new(self.x.value(), self.y.value())
     }
@@ -419,12 +819,12 @@ impl<T: Real> V2<T> {
 
 impl<T: Real> V3<T> {
     /// `(x, y, z)`.
-    #[inline]
+    #[inline(always)]
     pub fn new(x: T, y: T, z: T) -> Self {
         V3 { x, y, z }
     }
     /// Lifts a constant `f64` vector.
-    #[inline]
+    #[inline(always)]
     pub fn cst(p: glam::DVec3) -> Self {
         V3 {
             x: T::cst(p.x),
@@ -433,17 +833,17 @@ impl<T: Real> V3<T> {
         }
     }
     /// The dot product.
-    #[inline]
+    #[inline(always)]
     pub fn dot(self, o: Self) -> T {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
     /// The dot product with a constant vector.
-    #[inline]
+    #[inline(always)]
     pub fn dot_cst(self, o: glam::DVec3) -> T {
         self.x.scale(o.x) + self.y.scale(o.y) + self.z.scale(o.z)
     }
     /// The cross product.
-    #[inline]
+    #[inline(always)]
     pub fn cross(self, o: Self) -> Self {
         V3 {
             x: self.y * o.z - self.z * o.y,
@@ -452,12 +852,12 @@ impl<T: Real> V3<T> {
         }
     }
     /// `|self|^2`.
-    #[inline]
+    #[inline(always)]
     pub fn norm2(self) -> T {
         self.x.sqr() + self.y.sqr() + self.z.sqr()
     }
     /// `self * k`.
-    #[inline]
+    #[inline(always)]
     pub fn scaled(self, k: T) -> Self {
         V3 {
             x: self.x * k,
@@ -466,7 +866,7 @@ impl<T: Real> V3<T> {
         }
     }
     /// `self / k`.
-    #[inline]
+    #[inline(always)]
     pub fn divided(self, k: T) -> Self {
         V3 {
             x: self.x / k,
@@ -475,7 +875,7 @@ impl<T: Real> V3<T> {
         }
     }
     /// Representative values.
-    #[inline]
+    #[inline(always)]
     pub fn value(self) -> glam::DVec3 {
         glam::DVec3::new(self.x.value(), self.y.value(), self.z.value())
     }
@@ -483,7 +883,7 @@ impl<T: Real> V3<T> {
 
 impl<T: Real> Add for V3<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         V3 {
             x: self.x + o.x,
@@ -494,7 +894,7 @@ impl<T: Real> Add for V3<T> {
 }
 impl<T: Real> Sub for V3<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         V3 {
             x: self.x - o.x,
@@ -505,7 +905,7 @@ impl<T: Real> Sub for V3<T> {
 }
 impl<T: Real> Add for V2<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         V2 {
             x: self.x + o.x,
@@ -515,7 +915,7 @@ impl<T: Real> Add for V2<T> {
 }
 impl<T: Real> Sub for V2<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         V2 {
             x: self.x - o.x,
@@ -598,5 +998,205 @@ mod tests {
         let h = 1e-5;
         let fd = (f(Dual::var(x + h)).d - f(Dual::var(x - h)).d) / (2.0 * h);
         assert!((d2 - fd).abs() < 1e-8, "second derivative {d2} vs {fd}");
+    }
+
+    /// `down` and `up` step past the neighbouring `f64`s, also for subnormals, zero, powers of
+    /// two (where the spacing changes) and the largest finite numbers.
+    #[test]
+    fn outward_rounding_passes_the_neighbours() {
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            TINY,
+            -TINY,
+            f64::MIN_POSITIVE,
+            f64::MIN_POSITIVE * 0.75,
+            1.0,
+            -1.0,
+            2.0,
+            0.5,
+            f64::MAX,
+            -f64::MAX,
+            1e-310,
+            3.0e-320,
+        ];
+        let mut seed = 99u64;
+        for _ in 0..2000 {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let x = f64::from_bits(seed >> 1);
+            if x.is_finite() {
+                xs.push(x);
+                xs.push(-x);
+            }
+        }
+        for k in -1074..1024 {
+            xs.push(2f64.powi(k));
+            xs.push(-(2f64.powi(k)));
+        }
+        for x in xs {
+            let (d, u) = (down(x), up(x));
+            assert!(d <= x.next_down(), "down({x:e}) = {d:e}");
+            assert!(
+                u >= x.next_up() || (x == f64::MAX && u == f64::INFINITY),
+                "up({x:e}) = {u:e}"
+            );
+            assert!(
+                !(x.next_down() - d > 4.0 * (x - x.next_down()).abs().max(TINY)),
+                "down({x:e}) too far"
+            );
+        }
+        assert!(down(f64::INFINITY).is_nan() && up(f64::NEG_INFINITY).is_nan());
+        assert_eq!(down(f64::NEG_INFINITY), f64::NEG_INFINITY);
+    }
+
+    /// A pseudo-random number generator for the Taylor model tests.
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn range(&mut self, a: f64, b: f64) -> f64 {
+            a + (b - a) * self.next()
+        }
+    }
+
+    /// A random model on `[-h, h]` and a random member `(t, value)` of its set.
+    fn random_model(rng: &mut Lcg, h: f64) -> (Taylor, f64, f64) {
+        let m = Taylor {
+            c: rng.range(-3.0, 3.0),
+            s: rng.range(-2.0, 2.0),
+            rho: if rng.next() < 0.3 {
+                0.0
+            } else {
+                rng.range(0.0, 0.05)
+            },
+            h,
+        };
+        let t = rng.range(-h, h);
+        let r = rng.range(-m.rho, m.rho);
+        (m, t, m.c + m.s * t + r)
+    }
+
+    /// Whether the model at `t` admits `x` (with a little slack for the rounding of `x` and of
+    /// the check itself).
+    fn admits(m: Taylor, t: f64, x: f64) -> bool {
+        let slack = 1e-14 * (x.abs() + m.c.abs() + m.s.abs() * m.h);
+        (x - (m.c + m.s * t)).abs() <= m.rho + slack
+    }
+
+    /// The enclosure property of every `Taylor` operation: apply it to members of the operand
+    /// sets (sharing `t`) and the result must be a member of the result's set.
+    #[test]
+    fn taylor_operations_enclose_their_members() {
+        let mut rng = Lcg(2024);
+        for _ in 0..20000 {
+            let h = if rng.next() < 0.1 {
+                0.0
+            } else {
+                rng.range(0.0, 0.6)
+            };
+            let (a, t, x) = random_model(&mut rng, h);
+            let (b, _, _) = random_model(&mut rng, h);
+            // A member of b's set at the same t.
+            let y = b.c + b.s * t + rng.range(-b.rho, b.rho);
+            let k = rng.range(-3.0, 3.0);
+            let checks: [(&str, Taylor, f64); 9] = [
+                ("add", a + b, x + y),
+                ("sub", a - b, x - y),
+                ("mul", a * b, x * y),
+                ("sqr", a.sqr(), x * x),
+                ("scale", a.scale(k), x * k),
+                ("sin", a.sin(), x.sin()),
+                ("cos", a.cos(), x.cos()),
+                ("sin_cos.0", a.sin_cos().0, x.sin()),
+                ("sin_cos.1", a.sin_cos().1, x.cos()),
+            ];
+            for (name, m, v) in checks {
+                assert!(
+                    admits(m, t, v),
+                    "{name}: {a:?} {b:?} at t={t}: {v} not in {m:?}"
+                );
+                assert!(m.enclosure().contains(v), "{name} enclosure");
+            }
+            let div = a / b;
+            assert!(
+                admits(div, t, x / y) || div.enclosure() == Interval::ENTIRE,
+                "div: {a:?} / {b:?} at {t}"
+            );
+            let sqrt = a.sqrt();
+            assert!(
+                x < 0.0 || admits(sqrt, t, x.sqrt()) || sqrt.enclosure() == Interval::ENTIRE,
+                "sqrt: {a:?} at {t}"
+            );
+            // A cubic with interval coefficients, at the model's centre and off it.
+            let kc = [0, 1, 2, 3].map(|_| {
+                let c = rng.range(-2.0, 2.0);
+                Interval::new(c, c + rng.range(0.0, 0.01))
+            });
+            let kv = kc.map(|k| rng.range(k.lo, k.hi));
+            for m in [a.c, a.c + rng.range(-0.1, 0.1)] {
+                let z = x - m;
+                let v = kv[0] + z * (kv[1] + z * (kv[2] + z * kv[3]));
+                assert!(admits(a.cubic_at(m, kc), t, v), "cubic at {m}: {a:?}");
+            }
+        }
+    }
+
+    /// The point of Taylor models: they enclose a smooth function's range, and its derivative's,
+    /// to second order in the width (halving the interval quarters the excess), where interval
+    /// arithmetic is off to first order (halving only halves it).
+    #[test]
+    fn taylor_enclosures_are_tight() {
+        fn f<T: Real>(x: T) -> T {
+            x.sin() * x.sqrt() / (T::cst(1.0) + x.sqr())
+        }
+        // Excess widths over the sampled ranges: [Taylor value, Taylor slope, interval value,
+        // interval slope].
+        let excess = |lo: f64, hi: f64| {
+            let samples: Vec<(f64, f64)> = (0..=200)
+                .map(|i| {
+                    let r = f(Dual::var(lo + (hi - lo) * i as f64 / 200.0));
+                    (r.v, r.d)
+                })
+                .collect();
+            let range = |k: fn(&(f64, f64)) -> f64| {
+                let v = samples.iter().map(k);
+                let (a, b) = (
+                    v.clone().fold(f64::INFINITY, f64::min),
+                    v.fold(f64::NEG_INFINITY, f64::max),
+                );
+                Interval::exact(a, b)
+            };
+            let (rv, rd) = (range(|s| s.0), range(|s| s.1));
+            let tm = f(Dual::var(Taylor::var(lo, hi)));
+            let iv = f(Dual::var(Interval::exact(lo, hi)));
+            [
+                (tm.v.enclosure(), rv),
+                (tm.d.enclosure(), rd),
+                (iv.v, rv),
+                (iv.d, rd),
+            ]
+            .map(|(e, r)| {
+                assert!(e.lo <= r.lo && r.hi <= e.hi, "{e:?} must hold {r:?}");
+                e.width() - r.width()
+            })
+        };
+        let w = [0.04, 0.02, 0.01].map(|w| excess(0.3, 0.3 + w));
+        for k in 0..2 {
+            assert!(
+                w[0][k] > 3.0 * w[1][k] && w[1][k] > 3.0 * w[2][k],
+                "Taylor {k}: {w:?}"
+            );
+            assert!(
+                w[0][k + 2] < 2.5 * w[1][k + 2] && w[2][k + 2] > 20.0 * w[2][k],
+                "interval {k}: {w:?}"
+            );
+        }
     }
 }

@@ -210,7 +210,7 @@ mod tests {
             ]),
             radius: [0.12, 0.12],
             ellipticity: 0.25,
-            twist: [0.0, 3.14],
+            twist: [0.0, std::f64::consts::PI],
             section: Section::default(),
         };
         let cyls = s.cylinders().unwrap();

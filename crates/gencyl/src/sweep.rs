@@ -79,7 +79,7 @@ impl SweepRule for HairSweep {
     #[inline]
     fn apply<T: Real>(&self, u: T, p: V2<T>) -> V2<T> {
         let th = Self::lerp(self.rotation, u);
-        let (c, s) = (th.cos(), th.sin());
+        let (s, c) = th.sin_cos();
         let (x, y) = (p.x * self.major_at(u), p.y * self.minor_at(u));
         V2::new(c * x - s * y, s * x + c * y)
     }
@@ -87,7 +87,7 @@ impl SweepRule for HairSweep {
     #[inline]
     fn inverse<T: Real>(&self, u: T, q: V2<T>) -> V2<T> {
         let th = Self::lerp(self.rotation, u);
-        let (c, s) = (th.cos(), th.sin());
+        let (s, c) = th.sin_cos();
         V2::new(
             (c * q.x + s * q.y) / self.major_at(u),
             (c * q.y - s * q.x) / self.minor_at(u),

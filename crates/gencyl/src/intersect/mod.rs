@@ -82,6 +82,7 @@ impl<C: CrossSection, S: SweepRule> Function1D for PlaneFoot<'_, C, S> {
 /// With `R = 1` its roots are the hits on the unit-circle section. Unlike `|phi|^2 - R^2` it has
 /// no poles where `q = a'.d` vanishes (there `g = |s^-1(m d)|^2 >= 0`, zero only when the ray lies
 /// in that normal plane), so one root search covers `[0, 1]` and interval enclosures stay tight.
+/// Evaluated by [`GeneralizedCylinder::radial_g_r`].
 pub(crate) struct Radial<'a, C, S> {
     pub cyl: &'a GeneralizedCylinder<C, S>,
     pub o: DVec3,
@@ -92,15 +93,7 @@ pub(crate) struct Radial<'a, C, S> {
 impl<C: CrossSection, S: SweepRule> Function1D for Radial<'_, C, S> {
     #[inline]
     fn eval<T: Real>(&self, u: T) -> T {
-        if let Some(k) = self.cyl.sweep.uniform_scale() {
-            // |q phi| = |V| / r(u): no frame needed (the polynomial of `Method::Polynomial`).
-            let (v, q) = self.cyl.scaled_offset_r(self.o, self.d, u);
-            let r = (T::cst(k[0]) + u.scale(k[1] - k[0])).scale(self.radius);
-            v.norm2() - (r * q).sqr()
-        } else {
-            let (qphi, q) = self.cyl.scaled_phi_r(self.o, self.d, u);
-            qphi.norm2() - q.sqr().scale(self.radius * self.radius)
-        }
+        self.cyl.radial_g_r(self.o, self.d, u, self.radius)
     }
 }
 
@@ -377,5 +370,423 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         self.section
             .contains(phi)
             .then(|| (w, crate::section::angle(phi)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cylinder::FiberSpec;
+    use crate::real::{Dual, Interval, Taylor};
+    use crate::roots::isolate_roots_reference;
+    use crate::section::Section;
+    use crate::sweep::HairSweep;
+
+    type Cyl = GeneralizedCylinder<Section, HairSweep>;
+
+    /// `g` the way it was computed before [`GeneralizedCylinder::radial_g_r`]: the unit frame
+    /// `(t, n, b)` of `frame_r`, `q phi = s^-1(u, (n.V, b.V))`, all over the Bernstein form.
+    struct RadialByFrame<'a> {
+        cyl: &'a Cyl,
+        o: DVec3,
+        d: DVec3,
+        radius: f64,
+    }
+
+    impl Function1D for RadialByFrame<'_> {
+        fn eval<T: Real>(&self, u: T) -> T {
+            if let Some(k) = self.cyl.sweep.uniform_scale() {
+                let (v, q) = self.cyl.scaled_offset_r(self.o, self.d, u);
+                let r = (T::cst(k[0]) + u.scale(k[1] - k[0])).scale(self.radius);
+                v.norm2() - (r * q).sqr()
+            } else {
+                let (qphi, q) = self.cyl.scaled_phi_r(self.o, self.d, u);
+                qphi.norm2() - q.sqr().scale(self.radius * self.radius)
+            }
+        }
+    }
+
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn range(&mut self, a: f64, b: f64) -> f64 {
+            a + (b - a) * self.next()
+        }
+        fn unit(&mut self) -> DVec3 {
+            loop {
+                let v = DVec3::new(
+                    self.range(-1.0, 1.0),
+                    self.range(-1.0, 1.0),
+                    self.range(-1.0, 1.0),
+                );
+                if v.length() > 0.1 && v.length() <= 1.0 {
+                    return v.normalize();
+                }
+            }
+        }
+    }
+
+    fn v3(x: f64, y: f64, z: f64) -> DVec3 {
+        DVec3::new(x, y, z)
+    }
+
+    /// Elliptical fibers: twisted on a curly 3D axis (Frenet), tapering with a backward twist,
+    /// straight and twisted (a fixed frame), and a round tapering one (the uniform-scale form).
+    fn fibers() -> Vec<(&'static str, Cyl)> {
+        let curly = [
+            v3(0.0, 0.0, 0.0),
+            v3(0.35, 0.45, 0.1),
+            v3(0.75, 0.05, 0.55),
+            v3(1.05, 0.45, 0.35),
+        ];
+        let spec = |bezier, major, minor, rotation| FiberSpec {
+            bezier,
+            major_radius: major,
+            minor_radius: minor,
+            rotation,
+            caps: true,
+            normal_hint: None,
+            section: Section::default(),
+        };
+        [
+            (
+                "twisted",
+                spec(
+                    curly,
+                    [0.03, 0.03],
+                    [0.015, 0.015],
+                    [0.0, std::f64::consts::TAU],
+                ),
+            ),
+            (
+                "taper",
+                spec(
+                    [
+                        v3(2.0, 1.0, -1.0),
+                        v3(2.2, 1.5, -1.2),
+                        v3(2.8, 1.6, -0.7),
+                        v3(2.9, 1.1, -0.4),
+                    ],
+                    [0.06, 0.08],
+                    [0.03, 0.02],
+                    [1.0, -2.0],
+                ),
+            ),
+            (
+                "straight",
+                spec(
+                    [0.0, 0.3, 0.6, 1.0].map(|s| v3(0.6 * s, 0.7 * s, 0.2 * s)),
+                    [0.05, 0.04],
+                    [0.02, 0.03],
+                    [0.0, 3.0],
+                ),
+            ),
+            ("round", spec(curly, [0.04, 0.02], [0.04, 0.02], [0.0, 0.0])),
+        ]
+        .map(|(name, s)| (name, s.build().expect("valid fiber")))
+        .into()
+    }
+
+    /// A local ray (origin relative to the cylinder's) through a point within `3 r` of the
+    /// axis, in a random direction.
+    fn random_ray(cyl: &Cyl, rng: &mut Rng) -> (DVec3, DVec3) {
+        let r = cyl.sweep.scale_bound()[0];
+        let target = cyl.axis.point(rng.range(-0.02, 1.02)) + rng.unit() * rng.range(0.0, 3.0 * r);
+        let d = rng.unit() * rng.range(0.5, 2.0);
+        (target - rng.range(0.5, 2.0) * d, d)
+    }
+
+    /// A local ray tangent to the side surface at `(u, v)` in a direction between the section's
+    /// and the axis', moved off the surface along the normal by `offset` (positive: outwards).
+    fn grazing_ray(cyl: &Cyl, u: f64, v: f64, offset: f64) -> (DVec3, DVec3) {
+        let p = cyl.surface_point(u, v) - cyl.origin;
+        let n = cyl.normal(u, v);
+        let h = 1e-6;
+        let along_v = cyl.surface_point(u, v + h) - cyl.surface_point(u, v - h);
+        let along_u = cyl.surface_point(u + h, v) - cyl.surface_point(u - h, v);
+        let t = along_v.normalize() + 0.5 * along_u.normalize();
+        let t = (t - t.dot(n) * n).normalize();
+        (p + offset * n - 1.5 * t, t)
+    }
+
+    /// The side roots on the prefilter's ranges, by the fast isolator on `radial_g_r` and by the
+    /// reference isolator (intervals, halving) on the frame formula.
+    fn roots_both_ways(cyl: &Cyl, o: DVec3, d: DVec3) -> (Vec<f64>, Vec<f64>) {
+        let (mut fast, mut reference) = (Vec::new(), Vec::new());
+        for (a, b) in prefilter::candidate_ranges(cyl, o, d) {
+            let (a, b) = widen(a, b, -U_MARGIN, 1.0 + U_MARGIN);
+            fast.extend(cyl.radial_roots_between(o, d, 1.0, a, b));
+            let mut us = ArrayVec::new();
+            let g = RadialByFrame {
+                cyl,
+                o,
+                d,
+                radius: 1.0,
+            };
+            isolate_roots_reference(&g, a, b, &cyl.radial_options(d, 1.0), &mut us);
+            reference.extend(us);
+        }
+        (fast, reference)
+    }
+
+    /// `radial_g_r` against the frame formula it replaced, in `f64` and `Dual<f64>`, including
+    /// near an inflection of a planar S-shaped axis (where the Frenet frame takes a limit).
+    #[test]
+    fn radial_g_matches_the_frame_formula() {
+        let mut cases = fibers();
+        let s_curve = FiberSpec {
+            bezier: [
+                v3(0.0, 0.0, 0.0),
+                v3(1.0, 1.0, 0.0),
+                v3(2.0, -1.0, 0.0),
+                v3(3.0, 0.0, 0.0),
+            ],
+            major_radius: [0.1, 0.1],
+            minor_radius: [0.05, 0.05],
+            rotation: [0.2, 0.2],
+            caps: true,
+            normal_hint: None,
+            section: Section::default(),
+        };
+        cases.push(("inflection", s_curve.build().unwrap()));
+        let mut rng = Rng(5);
+        for (name, cyl) in &cases {
+            for i in 0..400 {
+                let (o, d) = random_ray(cyl, &mut rng);
+                let u = if i % 4 == 0 { 0.5 } else { rng.range(0.0, 1.0) };
+                let radius = rng.range(0.5, 1.5);
+                let g = Radial { cyl, o, d, radius };
+                let by_frame = RadialByFrame { cyl, o, d, radius };
+                let (x, y) = (g.eval(Dual::var(u)), by_frame.eval(Dual::var(u)));
+                // The size of the terms that cancel in g.
+                let scale = cyl.q_scale(d).powi(2) * (1.0 + y.v.abs());
+                assert!(
+                    (x.v - y.v).abs() <= 1e-11 * scale,
+                    "{name} u={u}: g {} vs {}",
+                    x.v,
+                    y.v
+                );
+                assert!(
+                    (x.d - y.d).abs() <= 1e-9 * scale * (1.0 + y.d.abs()),
+                    "{name} u={u}: g' {} vs {}",
+                    x.d,
+                    y.d
+                );
+            }
+        }
+    }
+
+    /// The enclosures the isolators rely on (Taylor models and intervals, with and without a
+    /// dual part) hold the values of `g` and `g'` sampled across random cells, narrow and wide.
+    #[test]
+    fn radial_enclosures_hold_sampled_values() {
+        let mut rng = Rng(11);
+        for (name, cyl) in &fibers() {
+            for _ in 0..300 {
+                let (o, d) = random_ray(cyl, &mut rng);
+                let g = Radial {
+                    cyl,
+                    o,
+                    d,
+                    radius: rng.range(0.8, 1.3),
+                };
+                let w = 10f64.powf(rng.range(-7.0, -0.7));
+                let a = rng.range(-U_MARGIN, 1.0 - w);
+                let b = a + w;
+                let tm = g.eval(Dual::var(Taylor::var(a, b)));
+                let t0 = g.eval(Taylor::var(a, b));
+                let iv = g.eval(Dual::var(Interval::exact(a, b)));
+                let i0 = g.eval(Interval::exact(a, b));
+                for k in 0..=16 {
+                    let u = a + (b - a) * k as f64 / 16.0;
+                    let p = g.eval(Dual::var(u));
+                    // The f64 evaluation's own rounding.
+                    let slack = 1e-13 * cyl.q_scale(d).powi(2) * (1.0 + p.v.abs() + p.d.abs());
+                    let within = |e: Interval, x: f64| e.lo - slack <= x && x <= e.hi + slack;
+                    for (kind, v, dv) in [
+                        ("Taylor", tm.v.enclosure(), Some(tm.d.enclosure())),
+                        ("Taylor value", t0.enclosure(), None),
+                        ("interval", iv.v, Some(iv.d)),
+                        ("interval value", i0, None),
+                    ] {
+                        assert!(within(v, p.v), "{name} {kind} [{a}, {b}] at {u}: g {}", p.v);
+                        assert!(
+                            dv.is_none_or(|e| within(e, p.d)),
+                            "{name} {kind} [{a}, {b}] at {u}: g' {}",
+                            p.d
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// Near-tangent rays, and random ones, on elliptical (twisted, tapering, straight) and round
+    /// fibers: the fast isolator finds exactly the roots the interval reference finds. The
+    /// grazing rays pass `1e-3` down to `1e-9` of the minor radius outside or inside the surface
+    /// (no hit, or two close hits), which the fast path decides by splitting at the predicted
+    /// critical point; the tangent ones (offset 0) reach the narrowest cells and the tangential
+    /// root test, where the two methods may differ only by reporting a double root or not.
+    #[test]
+    fn fast_isolation_matches_the_interval_reference() {
+        let mut rng = Rng(77);
+        let mut grazes = 0;
+        let mut tangent_roots = 0;
+        for (name, cyl) in &fibers() {
+            let minor = cyl.sweep.minor[0].min(cyl.sweep.minor[1]);
+            for i in 0..160 {
+                let (u0, offset) = (rng.range(0.05, 0.95), [1e-3, 1e-6, 1e-9, 0.0][i % 4]);
+                let side = if i % 8 < 4 { 1.0 } else { -1.0 };
+                let (o, d) = grazing_ray(
+                    cyl,
+                    u0,
+                    rng.range(0.0, std::f64::consts::TAU),
+                    side * offset * minor,
+                );
+                let (fast, reference) = roots_both_ways(cyl, o, d);
+                if offset == 0.0 {
+                    // Away from the tangent point the same roots. At it both report the double
+                    // root, as one root or as a cluster of numerically equivalent ones (g is at
+                    // rounding level there and may change sign), within 1e-8 of u0.
+                    let split = |r: &Vec<f64>| -> (Vec<f64>, Vec<f64>) {
+                        r.iter().partition(|u| (*u - u0).abs() <= 1e-3)
+                    };
+                    let ((fn_, ff), (rn, rf)) = (split(&fast), split(&reference));
+                    assert_eq!(
+                        ff.len(),
+                        rf.len(),
+                        "{name} tangent at {u0}: {fast:?} vs {reference:?}"
+                    );
+                    for (x, y) in ff.iter().zip(&rf) {
+                        assert!((x - y).abs() <= 1e-10, "{name}: {fast:?} vs {reference:?}");
+                    }
+                    assert!(
+                        !fn_.is_empty() && !rn.is_empty(),
+                        "{name} tangent at {u0}: {fast:?} vs {reference:?}"
+                    );
+                    assert!(
+                        fn_.iter().chain(&rn).all(|u| (u - u0).abs() <= 1e-8),
+                        "{name} tangent at {u0}: {fast:?} vs {reference:?}"
+                    );
+                    tangent_roots += fn_.len();
+                    continue;
+                }
+                grazes += 1;
+                assert_eq!(
+                    fast.len(),
+                    reference.len(),
+                    "{name} graze {side}*{offset} at u={u0}: {fast:?} vs {reference:?}"
+                );
+                for (x, y) in fast.iter().zip(&reference) {
+                    assert!(
+                        (x - y).abs() <= 1e-9,
+                        "{name} graze {side}*{offset} at u={u0}: {fast:?} vs {reference:?}"
+                    );
+                }
+                // Inside the surface the ray crosses it twice near the tangent point.
+                if side < 0.0 {
+                    let near = fast.iter().filter(|u| (*u - u0).abs() < 0.05).count();
+                    assert!(near >= 2, "{name} graze inside at {u0}: {fast:?}");
+                }
+            }
+            for _ in 0..150 {
+                let (o, d) = random_ray(cyl, &mut rng);
+                let (fast, reference) = roots_both_ways(cyl, o, d);
+                assert_eq!(
+                    fast.len(),
+                    reference.len(),
+                    "{name}: {fast:?} vs {reference:?}"
+                );
+                for (x, y) in fast.iter().zip(&reference) {
+                    assert!((x - y).abs() <= 1e-10, "{name}: {fast:?} vs {reference:?}");
+                }
+            }
+        }
+        assert!(
+            grazes > 400 && tangent_roots > 0,
+            "{grazes} {tangent_roots}"
+        );
+    }
+
+    /// The root and tip segments of a strand have `a'' = 0` at their outer end (reflected end
+    /// points), where `g` is a ratio of two quantities vanishing like `u^2`. The enclosures
+    /// must stay tight there ([`GeneralizedCylinder::reduced_second_r`]): every search finishes
+    /// within 300 cell evaluations (without the reduction some took over 4000, the budget), and
+    /// finds the reference's roots.
+    #[test]
+    fn strand_ends_with_vanishing_curvature_are_cheap() {
+        let p1 = v3(0.02, 0.05, 0.01);
+        let q1 = v3(0.05, 0.03, 0.02);
+        let q3 = v3(0.1, 0.12, 0.0);
+        let ends = [
+            (
+                "root",
+                [v3(0.0, 0.0, 0.0), p1, 2.0 * p1, v3(0.1, 0.13, -0.03)],
+            ),
+            ("tip", [v3(0.0, 0.0, 0.0), q1, 0.5 * (q1 + q3), q3]),
+        ];
+        let mut rng = Rng(3);
+        for (name, bezier) in ends {
+            let spec = FiberSpec {
+                bezier,
+                major_radius: [0.012, 0.0115],
+                minor_radius: [0.0042, 0.004],
+                rotation: [0.0, 1.93],
+                caps: true,
+                normal_hint: None,
+                section: Section::default(),
+            };
+            let cyl = spec.build().unwrap();
+            let [h0, h1] = cyl.axis.second_hodograph();
+            assert!(
+                h0.length().min(h1.length()) <= 1e-12 * h0.length().max(h1.length()),
+                "{name}: a'' must vanish at an end"
+            );
+            let end = if name == "root" { 0.0 } else { 1.0 };
+            for _ in 0..300 {
+                let u = end + (1.0 - 2.0 * end) * rng.range(-0.02, 0.3);
+                let target = cyl.axis.point(u) + rng.unit() * rng.range(0.0, 0.036);
+                let d = rng.unit();
+                let o = target - 0.3 * d;
+                let mut opts = cyl.radial_options(d, 1.0);
+                opts.max_evaluations = 300;
+                for (a, b) in prefilter::candidate_ranges(&cyl, o, d) {
+                    let (a, b) = widen(a, b, -U_MARGIN, 1.0 + U_MARGIN);
+                    let g = Radial {
+                        cyl: &cyl,
+                        o,
+                        d,
+                        radius: 1.0,
+                    };
+                    let mut fast = ArrayVec::new();
+                    assert!(
+                        isolate_roots(&g, a, b, &opts, &mut fast),
+                        "{name}: over budget on [{a}, {b}] for o={o:?} d={d:?}"
+                    );
+                    let mut reference = ArrayVec::new();
+                    let g = RadialByFrame {
+                        cyl: &cyl,
+                        o,
+                        d,
+                        radius: 1.0,
+                    };
+                    isolate_roots_reference(&g, a, b, &cyl.radial_options(d, 1.0), &mut reference);
+                    assert_eq!(
+                        fast.len(),
+                        reference.len(),
+                        "{name}: {fast:?} vs {reference:?}"
+                    );
+                    for (x, y) in fast.iter().zip(&reference) {
+                        assert!((x - y).abs() <= 1e-10, "{name}: {fast:?} vs {reference:?}");
+                    }
+                }
+            }
+        }
     }
 }
