@@ -79,7 +79,7 @@ mod tests {
         let d = default_scene();
         assert_eq!(d.cylinders.len(), 48 * 13, "48 strands of 13 segments");
         assert!(d.camera.is_some(), "camera");
-        assert_eq!(d.lights.len(), 1, "one light");
+        assert_eq!(d.lights.len(), 2, "a key light and a rim light");
         assert!(d.environment.is_some(), "sky");
         assert_eq!(d.planes.len(), 1, "floor");
     }
