@@ -28,8 +28,10 @@ const STACK: usize = 96;
 const PARALLEL_SPLIT: usize = 4096;
 /// Nodes with at most this many primitives are split with the exact SAH (sorting them).
 const SMALL: usize = 32;
-/// Nodes with at least this many primitives try all three axes; smaller ones the widest.
-const ALL_AXES: usize = 1024;
+/// Nodes with at least this many primitives try all three axes; smaller ones the widest (as
+/// pbrt does): binning one axis is a third of the work, and on 1.6M hair segments it costs
+/// no measurable ray speed.
+const ALL_AXES: usize = 1 << 18;
 /// Nodes with at least this many primitives bin them in parallel.
 const PARALLEL_BIN: usize = 1 << 16;
 
