@@ -1297,6 +1297,18 @@ mod tests {
         }
     }
 
+    /// Each scene text fails with a message that starts as given.
+    fn expect_errors<S: AsRef<str>>(cases: &[(S, &str)]) {
+        for (src, want) in cases {
+            let got = err(src.as_ref());
+            assert!(
+                got.starts_with(want),
+                "for {:?}\n got: {got}\nwant: {want}...",
+                src.as_ref()
+            );
+        }
+    }
+
     #[test]
     fn parses_defaults() {
         let s = SceneDescription::parse(GOOD, "s.toml").unwrap();
@@ -1394,13 +1406,7 @@ mod tests {
             ("[[cylinder]\n", "s.toml:1:"),
             ("[cylinder]\nbezier = 1\n", "s.toml:"),
         ];
-        for (src, want) in cases {
-            let got = err(src);
-            assert!(
-                got.starts_with(want),
-                "for {src:?}\n got: {got}\nwant: {want}..."
-            );
-        }
+        expect_errors(cases);
     }
 
     #[test]
@@ -1695,13 +1701,7 @@ normal = [0, 3, 0]
                 "s.toml:3:10: normal must not be zero",
             ),
         ];
-        for (src, want) in cases {
-            let got = err(src);
-            assert!(
-                got.starts_with(want),
-                "for {src:?}\n got: {got}\nwant: {want}..."
-            );
-        }
+        expect_errors(cases);
     }
 
     #[test]
