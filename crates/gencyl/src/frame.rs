@@ -1,10 +1,12 @@
 //! The moving frame along the axis: Frenet where the axis bends, a fixed frame where the whole
 //! segment is straight (interface.md section 1).
 
+use arrayvec::ArrayVec;
 use glam::DVec3;
 
 use crate::curve::CubicBezier;
 use crate::real::{Real, V3};
+use crate::roots::{Function1D, IsolateOptions, isolate_roots};
 
 /// A segment whose control points stray from the chord by at most this fraction of the chord
 /// length is straight and gets a fixed frame.
@@ -91,6 +93,85 @@ pub(crate) fn frenet_shift(axis: &CubicBezier, u: f64) -> f64 {
     } else {
         -1e-7
     }
+}
+
+/// `|a' x a''|^2 - (FRENET_DEGENERATE |a'| max|a''|)^2`: negative exactly where
+/// [`frenet_shift`] takes the frame away from `u`.
+struct Degenerate<'a> {
+    axis: &'a CubicBezier,
+    /// `(FRENET_DEGENERATE max|a''|)^2`.
+    tol2: f64,
+}
+
+impl Function1D for Degenerate<'_> {
+    fn eval<T: Real>(&self, u: T) -> T {
+        let d1 = self.axis.d1_r(u);
+        d1.cross(self.axis.d2_r(u)).norm2() - d1.norm2().scale(self.tol2)
+    }
+}
+
+/// Every parameter in `(lo, hi)` where [`frenet_shift`] changes value, ascending: the ends of
+/// the stretches around inflections (and strand ends) where `a' x a''` is negligible, and the
+/// point `1 - 1e-7` where the shift inside such a stretch changes side. The Frenet frame of
+/// [`frame_r`] may jump there (by a half turn at an inflection of a planar axis), and nowhere
+/// else: between two of them it is smooth, and an enclosure over a subinterval, which decides
+/// the shift at its midpoint, holds the frame at every point of it.
+///
+/// The stretches are found rigorously (roots of a polynomial by [`isolate_roots`]) and each end
+/// is then bisected on `frenet_shift` itself, so it is where the `f64` evaluation switches, to
+/// the last bit. (A stretch that only touches the tolerance, a double root, may be missed; the
+/// frame then moves by at most `1e-7` in `u` there, continuously up to the tolerance.)
+pub(crate) fn frenet_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<f64, 8> {
+    let mut out = ArrayVec::new();
+    let m = axis.d2(0.0).length().max(axis.d2(1.0).length());
+    let f = Degenerate {
+        axis,
+        tol2: (FRENET_DEGENERATE * m).powi(2),
+    };
+    let opts = IsolateOptions {
+        min_width: 1e-15,
+        tangent_tolerance: 0.0,
+        max_evaluations: 400,
+    };
+    let mut roots = ArrayVec::new();
+    isolate_roots(&f, lo, hi, &opts, &mut roots);
+    let shift = |u: f64| frenet_shift(axis, u);
+    let mut candidates: ArrayVec<f64, 17> = roots.into_iter().collect();
+    let end_switch = 1.0 - 1e-7;
+    if end_switch > lo && end_switch < hi && shift(end_switch) != 0.0 {
+        candidates.push(end_switch);
+    }
+    candidates.sort_by(f64::total_cmp);
+    for r in candidates {
+        // Bracket the switch near r: the closest points either side with different shifts.
+        let mut step = 4.0 * f64::EPSILON * r.abs().max(1e-300);
+        let (mut a, mut b) = (r, r);
+        while shift(a) == shift(b) && step < 1e-6 {
+            a = (r - step).max(lo);
+            b = (r + step).min(hi);
+            step *= 4.0;
+        }
+        if shift(a) == shift(b) {
+            continue;
+        }
+        let sa = shift(a);
+        loop {
+            let mid = 0.5 * (a + b);
+            if mid <= a || mid >= b {
+                break;
+            }
+            if shift(mid) == sa {
+                a = mid;
+            } else {
+                b = mid;
+            }
+        }
+        // The switch lies between the adjacent floats a and b; b is the first with the new shift.
+        if b > lo && b < hi && !out.is_full() && out.last().is_none_or(|&l| l < b) {
+            out.push(b);
+        }
+    }
+    out
 }
 
 /// The frame `(t, n, b)` at `u` over any [`Real`].
@@ -350,5 +431,43 @@ mod tests {
             (at.b - right.b).length() < 1e-9,
             "limit from the right: {at:?} vs {right:?}"
         );
+    }
+
+    /// The switches of `frenet_shift`: none on a curve whose `a' x a''` never vanishes; on a
+    /// planar S-curve (`examples/xray.toml`'s axis, inflection at 1/2) the two ends of the
+    /// stretch around the inflection, each the first float with the new shift, and at the
+    /// first of them the binormal turns by half a turn; at a strand root (`a''(0) = 0`) the
+    /// end of the stretch at `u = 0`; and none outside the range asked for.
+    #[test]
+    fn frenet_switches_find_where_the_frame_may_jump() {
+        assert!(frenet_switches(&helix_like(), 0.0, 1.0).is_empty(), "helix");
+        let s_curve = CubicBezier::new([
+            DVec3::new(-0.3, -1.1, 0.5),
+            DVec3::new(-0.1, -0.4, 0.6),
+            DVec3::new(0.1, 0.4, 0.4),
+            DVec3::new(0.3, 1.1, 0.5),
+        ]);
+        let sw = frenet_switches(&s_curve, -1e-11, 1.0 + 1e-11);
+        assert_eq!(sw.len(), 2, "{sw:?}");
+        for &u in &sw {
+            assert!((u - 0.5).abs() < 1e-8, "{sw:?}");
+            assert_ne!(
+                frenet_shift(&s_curve, u.next_down()),
+                frenet_shift(&s_curve, u),
+                "a switch at {u}"
+            );
+        }
+        let b = |u: f64| FrameAt::new(&s_curve, &Framing::Frenet, u).frame.b;
+        assert!(
+            b(sw[0].next_down()).dot(b(sw[0])) < -0.999,
+            "half a turn at {}",
+            sw[0]
+        );
+        assert!(frenet_switches(&s_curve, 0.0, 0.49).is_empty(), "outside");
+        let p1 = DVec3::new(0.02, 0.05, 0.01);
+        let root = CubicBezier::new([DVec3::ZERO, p1, 2.0 * p1, DVec3::new(0.1, 0.13, -0.03)]);
+        let sw = frenet_switches(&root, -1e-11, 1.0 + 1e-11);
+        assert_eq!(sw.len(), 1, "{sw:?}");
+        assert!(sw[0] > 0.0 && sw[0] < 1e-6, "{sw:?}");
     }
 }

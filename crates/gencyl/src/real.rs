@@ -560,9 +560,11 @@ impl Taylor {
         rounded(self.c - w, self.c + w, self.c + w)
     }
 
-    /// `f(self)` for `f` with value `f0`, slope `f1` (each within `err` of `f(c)`, `f'(c)`) at
-    /// `c`, and `|f''| <= f2` between `c` and the model's values: Taylor's theorem,
-    /// `f(c + d) = f(c) + f'(c) d + f''(xi) d^2 / 2` with `d = s t + r`.
+    /// `f(self)` for `f` with value `f0` within `err0` of `f(c)`, slope `f1` within `err1` of
+    /// `f'(c)` at `c`, and `|f''| <= f2` between `c` and the model's values: Taylor's theorem,
+    /// `f(c + d) = f(c) + f'(c) d + f''(xi) d^2 / 2` with `d = s t + r`, so the remainder is
+    /// `f1 r - e0 - e1 d + f''(xi) d^2 / 2` with `|e0| <= err0`, `|e1| <= err1`. (The two
+    /// errors are kept apart: for `sqrt` near 0 the slope's is far larger than the value's.)
     ///
     /// `range` encloses `f` over the model's values. Where the model is wide against the
     /// curvature of `f` (`1/x` or `sqrt` near 0) the remainder alone can exceed it; then the
@@ -570,12 +572,13 @@ impl Taylor {
     /// arithmetic would be. (Comparing the whole spread instead would also discard the linear
     /// part where it is large but exact, and it is what cancels in, say, `x^2 / x^2`.)
     #[inline(always)]
-    fn compose(self, f0: f64, f1: f64, f2: f64, err: f64, range: Interval) -> Self {
+    fn compose(self, f0: f64, f1: f64, f2: f64, err0: f64, err1: f64, range: Interval) -> Self {
         let s = f1 * self.s;
         let w = self.spread();
-        let rho = (f1.abs() + err) * self.rho
+        let rho = (f1.abs() + err1) * self.rho
             + 0.5 * f2 * w * w
-            + err * (1.0 + self.s.abs() * self.h)
+            + err0
+            + err1 * self.s.abs() * self.h
             + U4 * (f0.abs() + s.abs() * self.h);
         if rho > 0.5 * range.width() {
             return Taylor {
@@ -604,7 +607,14 @@ impl Taylor {
         };
         let range = if self.c > 0.0 { mag } else { -mag };
         // (1/x)' = -1/x^2, |(1/x)''| = 2/|x|^3 <= 2/lo^3.
-        self.compose(r, -(r * r), 2.0 / (lo * lo * lo), U4 * r * r, range)
+        self.compose(
+            r,
+            -(r * r),
+            2.0 / (lo * lo * lo),
+            U4 * r.abs(),
+            U4 * r * r,
+            range,
+        )
     }
 }
 
@@ -696,12 +706,10 @@ impl Real for Taylor {
         }
         let mag = |x: Interval| fmax(x.lo.abs(), x.hi.abs());
         let (f0, f1) = (k[0].value(), k[1].value());
-        let err = fmax(
-            fmax(k[0].hi - f0, f0 - k[0].lo),
-            fmax(k[1].hi - f1, f1 - k[1].lo),
-        );
+        let err0 = fmax(k[0].hi - f0, f0 - k[0].lo);
+        let err1 = fmax(k[1].hi - f1, f1 - k[1].lo);
         let f2 = 2.0 * mag(k[2]) + 6.0 * mag(k[3]) * self.spread();
-        self.compose(f0, f1, f2, err, Interval::ENTIRE)
+        self.compose(f0, f1, f2, err0, err1, Interval::ENTIRE)
     }
     #[inline(always)]
     fn value(self) -> f64 {
@@ -723,7 +731,7 @@ impl Real for Taylor {
         };
         // sqrt' = 1/(2 sqrt), |sqrt''| = 1/(4 x^1.5) <= 1/(4 lo sqrt(lo)).
         let f1 = 0.5 / r;
-        self.compose(r, f1, 0.25 / (lo * lo.sqrt()), U4 * (r + f1), range)
+        self.compose(r, f1, 0.25 / (lo * lo.sqrt()), U4 * r, U4 * f1, range)
     }
     #[inline(always)]
     fn sin(self) -> Self {
@@ -738,8 +746,8 @@ impl Real for Taylor {
         let (s, c) = self.c.sin_cos();
         let unit = Interval { lo: -1.0, hi: 1.0 };
         (
-            self.compose(s, c, 1.0, TRIG_ERR, unit),
-            self.compose(c, -s, 1.0, TRIG_ERR, unit),
+            self.compose(s, c, 1.0, TRIG_ERR, TRIG_ERR, unit),
+            self.compose(c, -s, 1.0, TRIG_ERR, TRIG_ERR, unit),
         )
     }
     #[inline(always)]
@@ -1196,6 +1204,34 @@ mod tests {
             assert!(
                 w[0][k + 2] < 2.5 * w[1][k + 2] && w[2][k + 2] > 20.0 * w[2][k],
                 "interval {k}: {w:?}"
+            );
+        }
+    }
+
+    /// `sqrt` and `1/x` of small arguments keep their linear part: the rounding error of the
+    /// slope (`1 / (2 sqrt(c))`, large) is charged to the slope only. When it was charged to the
+    /// value too, `sqrt` of `|C|^2 ~ 1e-13` (a' x a'' near an inflection of the axis) came out
+    /// as a constant with a remainder of 0.3% of its value, and the unit binormal `C / |C|`
+    /// with a remainder of 1e-3 however narrow the interval.
+    #[test]
+    fn taylor_sqrt_of_small_values_stays_first_order() {
+        let (lo, hi) = (1e-7, 1e-7 + 1e-10);
+        let x = Taylor::var(lo, hi);
+        for (name, model, f) in [
+            ("sqrt", x.sqr().sqrt(), (|x: f64| x) as fn(f64) -> f64),
+            ("x / sqrt(x^2)", x / x.sqr().sqrt(), |_| 1.0),
+        ] {
+            let e = model.enclosure();
+            for k in 0..=8 {
+                let u = lo + (hi - lo) * k as f64 / 8.0;
+                assert!(e.contains(f(u)), "{name}: {e:?} must hold {}", f(u));
+            }
+            // Second order: the excess is about (width / x)^2 = 1e-6 of the value.
+            let exact = f(hi) - f(lo);
+            assert!(
+                e.width() <= exact + 1e-5 * f(lo).abs(),
+                "{name}: {e:?}, width {} against {exact}",
+                e.width()
             );
         }
     }

@@ -1,64 +1,62 @@
 //! The general path (seed 2.3): intersect the plane curve `phi(u)` with the section `cs(v)` by
-//! recursive subdivision of monotone, inflection-free pieces.
+//! recursive subdivision into pieces with bounding boxes, until both pieces of a pair are
+//! linear; then the chords' crossing, polished by Newton's method.
+//!
+//! The section's pieces are the seed's: split at its polynomial pieces' exact tangent and
+//! inflection points, each is monotone and convex, so it lies in the box of its end points and
+//! in the triangle of its chord and end tangents.
+//!
+//! `phi` is not split at features. Its tangent and inflection points are roots of functions
+//! that no sampling can be sure to find: near an inflection of a nearly planar axis the Frenet
+//! frame turns half round within `1e-6` of `u`, and `phi` with it, through several tangent
+//! directions between two samples; a piece that is not monotone is not inside its end points'
+//! box, and pairs holding roots were pruned. Instead each piece of `phi` carries a first-order
+//! Taylor model of `phi` over its `u` range ([`Taylor`]): `phi(u) = c + s (u - m) + r` with
+//! `|r| <= rho` per coordinate, rounding included. Its enclosure is a box that holds the piece
+//! whatever its shape, and `rho` bounds the piece's distance from a line, which is what the
+//! linearity test needs. Both tighten as the pieces shrink (`rho` like the square of the
+//! width), so the subdivision ends as before.
+//!
+//! The frame, and with it `phi`, may jump where [`frenet_shift`](crate::frame) switches (at an
+//! inflection of a planar axis it turns by a half turn there: for a section that is not
+//! point-symmetric the swept surface itself is discontinuous, see [`frenet_switches`]); `phi`
+//! is split there so that no model spans a jump.
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use crate::cylinder::GeneralizedCylinder;
-use crate::real::{Dual, Real};
-use crate::roots::{Function1D, bracketed_root};
+use crate::frame::{Framing, frenet_switches};
+use crate::real::{Dual, Real, Taylor, V2};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
 /// A piece is linear when the tangent-intersection point is within this distance of the chord
-/// (in the `(parameter, coordinate)` planes, seed 2.3 with errata 3). The chord intersection then
-/// starts Newton's method within about this distance of the root, well inside its basin.
+/// in the `(parameter, coordinate)` planes (seed 2.3 with errata 3) and, times the section's
+/// bounding radius, the piece is within it of a line in the plane of the curves. The first
+/// keeps the parameterisation close to uniform, so the chord intersection's parameters start
+/// Newton's method near the root. The second is needed because the first is not scale
+/// invariant: where `phi` moves fast in `u` (`|phi'|` near `1e6` close to a nearly planar
+/// axis' inflection) every short piece passes it however much it bends.
 const LINEARITY_EPS: f64 = 1e-6;
-/// Grid cells per range in which `phi` is searched for tangent and inflection points.
-const FEATURE_SAMPLES: usize = 64;
 /// Subdivision depth cap: beyond it two pieces are treated as linear (a tangential contact).
-const MAX_DEPTH: u32 = 48;
+/// Each level halves one piece of the pair (the seed halves both): 48 levels of both.
+const MAX_DEPTH: u32 = 96;
 
-/// One coordinate, or a combination, of `phi` and its derivatives, as a function of `u`.
-#[derive(Clone, Copy)]
-enum PhiFeature {
-    /// `phi_x'(u)`: zero at vertical tangents.
-    DxDu,
-    /// `phi_y'(u)`: zero at horizontal tangents.
-    DyDu,
-    /// `phi_x' phi_y'' - phi_y' phi_x''`: zero at inflections.
-    Curvature,
-}
-
-struct PhiFn<'a, C, S> {
-    cyl: &'a GeneralizedCylinder<C, S>,
+/// `phi(u)` alone (without `w`): `q phi / q`.
+#[inline(always)]
+fn phi_only<C: CrossSection, S: SweepRule, T: Real>(
+    cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
     d: DVec3,
-    feature: PhiFeature,
+    u: T,
+) -> V2<T> {
+    let (qphi, q) = cyl.scaled_phi_r(o, d, u);
+    V2::new(qphi.x / q, qphi.y / q)
 }
 
-impl<C: CrossSection, S: SweepRule> Function1D for PhiFn<'_, C, S> {
-    fn eval<T: Real>(&self, u: T) -> T {
-        match self.feature {
-            PhiFeature::DxDu => self.cyl.phi_r(self.o, self.d, Dual::var(u)).0.x.d,
-            PhiFeature::DyDu => self.cyl.phi_r(self.o, self.d, Dual::var(u)).0.y.d,
-            PhiFeature::Curvature => {
-                // u as a doubly dual variable: .v.d and .d.v hold the first derivative,
-                // .d.d the second.
-                let uu = Dual {
-                    v: Dual::var(u),
-                    d: Dual::cst(1.0),
-                };
-                let p = self.cyl.phi_r(self.o, self.d, uu).0;
-                let (dx, dy) = (p.x.v.d, p.y.v.d);
-                let (ddx, ddy) = (p.x.d.d, p.y.d.d);
-                dx * ddy - dy * ddx
-            }
-        }
-    }
-}
-
-/// A piece of a plane curve over `[s0, s1]`: end points and end derivatives.
+/// A piece of a plane curve over `[s0, s1]`: end points, end derivatives, a box holding it and
+/// a bound on its distance from its chord.
 #[derive(Clone, Copy, Debug)]
 struct Piece {
     s0: f64,
@@ -67,14 +65,31 @@ struct Piece {
     p1: DVec2,
     d0: DVec2,
     d1: DVec2,
+    /// Corners of a box holding the piece.
+    lo: DVec2,
+    hi: DVec2,
+    /// A proven bound on the piece's distance from its chord; infinite for a monotone, convex
+    /// piece, whose end tangents bound it ([`flatness`]).
+    flat: f64,
+    /// Set on the halves of a `phi` piece whose bound did not shrink when it was split: it is
+    /// at the floor set by rounding, and the piece counts as linear ([`Intersector::split_phi`]).
+    floor: bool,
 }
 
 trait PlaneCurve {
     /// Point and derivative at `s`.
     fn eval(&self, s: f64) -> (DVec2, DVec2);
 
+    /// A box holding the curve over `[s0, s1]` and a bound on its distance from the chord
+    /// `p0 p1` (infinite: [`flatness`] applies), given the end points. By default the end
+    /// points' box, for pieces that are monotone in both coordinates.
+    fn bounds(&self, _s0: f64, _s1: f64, p0: DVec2, p1: DVec2) -> (DVec2, DVec2, f64) {
+        (p0.min(p1), p0.max(p1), f64::INFINITY)
+    }
+
     fn piece(&self, s0: f64, s1: f64) -> Piece {
         let ((p0, d0), (p1, d1)) = (self.eval(s0), self.eval(s1));
+        let (lo, hi, flat) = self.bounds(s0, s1, p0, p1);
         Piece {
             s0,
             s1,
@@ -82,23 +97,35 @@ trait PlaneCurve {
             p1,
             d0,
             d1,
+            lo,
+            hi,
+            flat,
+            floor: false,
         }
     }
 
     fn split(&self, p: &Piece) -> (Piece, Piece) {
         let m = 0.5 * (p.s0 + p.s1);
         let (pm, dm) = self.eval(m);
+        let (lo0, hi0, flat0) = self.bounds(p.s0, m, p.p0, pm);
+        let (lo1, hi1, flat1) = self.bounds(m, p.s1, pm, p.p1);
         (
             Piece {
                 s1: m,
                 p1: pm,
                 d1: dm,
+                lo: lo0,
+                hi: hi0,
+                flat: flat0,
                 ..*p
             },
             Piece {
                 s0: m,
                 p0: pm,
                 d0: dm,
+                lo: lo1,
+                hi: hi1,
+                flat: flat1,
                 ..*p
             },
         )
@@ -111,10 +138,39 @@ struct PhiCurve<'a, C, S> {
     d: DVec3,
 }
 
+impl<C: CrossSection, S: SweepRule> PhiCurve<'_, C, S> {
+    /// A bound on the rounding error of `phi(u)` in `f64`: the remainder of its Taylor model
+    /// over the single point `u`.
+    fn noise(&self, u: f64) -> f64 {
+        let m = phi_only(self.cyl, self.o, self.d, Taylor::var(u, u));
+        m.x.rho.hypot(m.y.rho)
+    }
+}
+
 impl<C: CrossSection, S: SweepRule> PlaneCurve for PhiCurve<'_, C, S> {
     fn eval(&self, u: f64) -> (DVec2, DVec2) {
-        let p = self.cyl.phi_r(self.o, self.d, Dual::var(u)).0;
+        let p = phi_only(self.cyl, self.o, self.d, Dual::var(u));
         (DVec2::new(p.x.v, p.y.v), DVec2::new(p.x.d, p.y.d))
+    }
+
+    /// From the Taylor model `c + s t + r`, `|t| <= h`, `|r| <= rho` of `phi` over `[u0, u1]`:
+    /// its enclosure, and twice `|rho|`: the piece is within `|rho|` of the line `c + s t`, and
+    /// so is the chord's every point (its ends are points of the piece), so the piece is within
+    /// `2 |rho|` of the chord. The box is cut down to the end points' box grown by `2 |rho|`
+    /// along the line, which holds the piece too and is tighter where the model is wide.
+    fn bounds(&self, u0: f64, u1: f64, p0: DVec2, p1: DVec2) -> (DVec2, DVec2, f64) {
+        let m = phi_only(self.cyl, self.o, self.d, Taylor::var(u0, u1));
+        let (ex, ey) = (m.x.enclosure(), m.y.enclosure());
+        let flat = 2.0 * m.x.rho.hypot(m.y.rho);
+        if !flat.is_finite() {
+            // No model (phi is finite on the range, so only for a piece far too wide).
+            return (DVec2::NEG_INFINITY, DVec2::INFINITY, f64::MAX);
+        }
+        (
+            DVec2::new(ex.lo, ey.lo).max(p0.min(p1) - flat),
+            DVec2::new(ex.hi, ey.hi).min(p0.max(p1) + flat),
+            flat,
+        )
     }
 }
 
@@ -153,18 +209,97 @@ fn coordinate_deviation(s0: f64, s1: f64, x0: f64, x1: f64, dx0: f64, dx1: f64) 
     (ds * x_star - dx * s_star + dx * s0 - x0 * ds).abs() / (ds * ds + dx * dx).sqrt()
 }
 
-fn is_linear(p: &Piece) -> bool {
+/// A bound on the distance of a piece from its chord, in the plane of the curve: the proven
+/// one it carries, or for a monotone, convex piece (a section piece), which turns by at most a
+/// right angle and lies in the triangle of its chord and end tangents, the apex' height
+/// `L tan(a0) tan(a1) / (tan(a0) + tan(a1))` above the chord of length `L`, with `a0`, `a1`
+/// the tangents' angles to the chord.
+fn flatness(p: &Piece) -> f64 {
+    if p.flat.is_finite() {
+        return p.flat;
+    }
+    let c = p.p1 - p.p0;
+    let l = c.length();
+    if l == 0.0 {
+        return 0.0;
+    }
+    let (c0, c1) = (c.perp_dot(p.d0), c.perp_dot(p.d1));
+    let tan = |cross: f64, d: DVec2| {
+        let along = c.dot(d);
+        if along > 0.0 {
+            cross.abs() / along
+        } else {
+            f64::INFINITY
+        }
+    };
+    let (t0, t1) = (tan(c0, p.d0), tan(c1, p.d1));
+    let h = if t0 == 0.0 || t1 == 0.0 {
+        0.0
+    } else if c0.signum() != c1.signum() {
+        // Tangents on opposite sides of the chord: the triangle.
+        l * t0.min(t1) * (t0.max(t1) / (t0 + t1))
+    } else {
+        // Both on one side, which only rounding can give a convex piece (a straight one): the
+        // larger tangent offset.
+        l * t0.max(t1)
+    };
+    if h.is_nan() { l } else { h.min(l) }
+}
+
+/// Seed 2.3's linearity test (errata 3) in both coordinates, and the piece within
+/// `LINEARITY_EPS * scale` of its chord in the plane.
+fn is_linear(p: &Piece, scale: f64) -> bool {
+    if p.floor {
+        return true;
+    }
     let dx = coordinate_deviation(p.s0, p.s1, p.p0.x, p.p1.x, p.d0.x, p.d1.x);
     let dy = coordinate_deviation(p.s0, p.s1, p.p0.y, p.p1.y, p.d0.y, p.d1.y);
-    (dx * dx + dy * dy).sqrt() < LINEARITY_EPS
+    (dx * dx + dy * dy).sqrt() < LINEARITY_EPS && flatness(p) < LINEARITY_EPS * scale
+}
+
+/// Whether halving the piece gives two shorter pieces (it spans more than two floats).
+fn splittable(p: &Piece) -> bool {
+    let m = 0.5 * (p.s0 + p.s1);
+    p.s0 < m && m < p.s1
+}
+
+/// The larger side of a piece's box.
+fn size(p: &Piece) -> f64 {
+    let e = p.hi - p.lo;
+    e.x.max(e.y)
+}
+
+/// Padding of the box and band tests (section units): keeps touching contacts, and covers the
+/// rounding of the end points.
+const PAD: f64 = 1e-9;
+
+/// Whether `p`'s box lies wholly on one side of the band around `q`'s chord line that holds `q`
+/// (its half-width is `q`'s distance bound [`flatness`]): then the pieces do not meet. This is
+/// the fat-line test of Bezier clipping; it prunes a pair whose boxes overlap only because one
+/// piece runs diagonally through its box.
+fn separated(p: &Piece, q: &Piece) -> bool {
+    let c = q.p1 - q.p0;
+    let l = c.length();
+    let h = flatness(q);
+    if !(l > 0.0) || !(h < l) {
+        return false;
+    }
+    let normal = c.perp() / l;
+    let dist = |x: f64, y: f64| (DVec2::new(x, y) - q.p0).dot(normal);
+    let ds = [
+        dist(p.lo.x, p.lo.y),
+        dist(p.hi.x, p.lo.y),
+        dist(p.lo.x, p.hi.y),
+        dist(p.hi.x, p.hi.y),
+    ];
+    let band = h + PAD;
+    ds.iter().all(|&x| x > band) || ds.iter().all(|&x| x < -band)
 }
 
 fn boxes_overlap(a: &Piece, b: &Piece) -> bool {
-    // End-point boxes bound monotone pieces; the pad keeps touching contacts.
-    let pad = 1e-9;
-    let (amin, amax) = (a.p0.min(a.p1) - pad, a.p0.max(a.p1) + pad);
-    let (bmin, bmax) = (b.p0.min(b.p1), b.p0.max(b.p1));
-    amin.x <= bmax.x && bmin.x <= amax.x && amin.y <= bmax.y && bmin.y <= amax.y
+    let pad = PAD;
+    let (amin, amax) = (a.lo - pad, a.hi + pad);
+    amin.x <= b.hi.x && b.lo.x <= amax.x && amin.y <= b.hi.y && b.lo.y <= amax.y
 }
 
 struct Intersector<'a, C, S> {
@@ -173,37 +308,84 @@ struct Intersector<'a, C, S> {
     /// Newton results outside this `u` range are rejected.
     range: (f64, f64),
     found: &'a mut Found,
+    /// The section's bounding radius: the scale of both curves.
+    scale: f64,
+}
+
+/// A piece of `phi` and, once computed, its halves: the subdivision of `phi` (a Taylor model
+/// per piece, the costly part) is built once and shared by every piece of the section it meets.
+struct PhiNode {
+    piece: Piece,
+    halves: Option<Box<[PhiNode; 2]>>,
+}
+
+impl PhiNode {
+    fn new(piece: Piece) -> Self {
+        PhiNode {
+            piece,
+            halves: None,
+        }
+    }
 }
 
 impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
-    /// INTERSECT(curve1, curve2) of seed 2.3.
-    fn intersect(&mut self, a: Piece, b: Piece, depth: u32) {
+    /// INTERSECT(curve1, curve2) of seed 2.3, for a piece of `phi` and one of the section.
+    fn intersect(&mut self, node: &mut PhiNode, b: Piece, depth: u32) {
+        let a = node.piece;
         if !boxes_overlap(&a, &b) || self.found.is_full() {
             return;
         }
-        let (la, lb) = (is_linear(&a), is_linear(&b));
+        if separated(&a, &b) || separated(&b, &a) {
+            return;
+        }
+        let la = is_linear(&a, self.scale) || !splittable(&a);
+        let lb = is_linear(&b, self.scale) || !splittable(&b);
+        // Both bend: split the larger only, so a wide box (`phi` near a singular frame) is
+        // not paired with ever more pieces of the section.
+        let split_a = !la && (lb || size(&a) >= size(&b));
         if (la && lb) || depth >= MAX_DEPTH {
             self.chord_intersect(&a, &b);
-        } else if la {
-            let (b1, b2) = self.cs.split(&b);
-            self.intersect(a, b1, depth + 1);
-            self.intersect(a, b2, depth + 1);
-        } else if lb {
-            let (a1, a2) = self.phi.split(&a);
+        } else if split_a {
+            let [a1, a2] = &mut **self.halves(node);
             self.intersect(a1, b, depth + 1);
             self.intersect(a2, b, depth + 1);
         } else {
-            let (a1, a2) = self.phi.split(&a);
             let (b1, b2) = self.cs.split(&b);
-            self.intersect(a1, b1, depth + 1);
-            self.intersect(a2, b1, depth + 1);
-            self.intersect(a1, b2, depth + 1);
-            self.intersect(a2, b2, depth + 1);
+            self.intersect(node, b1, depth + 1);
+            self.intersect(node, b2, depth + 1);
         }
+    }
+
+    /// The halves of a node, computed on first use ([`Self::split_phi`]).
+    fn halves<'n>(&self, node: &'n mut PhiNode) -> &'n mut Box<[PhiNode; 2]> {
+        node.halves.get_or_insert_with(|| {
+            let (a1, a2) = self.split_phi(&node.piece);
+            Box::new([PhiNode::new(a1), PhiNode::new(a2)])
+        })
+    }
+
+    /// Halves a piece of `phi`. The bound of a smooth piece shrinks about fourfold per halving
+    /// (it is second order in the width). Near an inflection of the axis, though, the Frenet
+    /// frame and `phi` carry rounding noise (the binormal is the direction of a short
+    /// `a' x a''`), and the models' bounds stop shrinking at its level, possibly above the
+    /// linearity tolerance; halving further would only multiply the pieces. When neither half
+    /// improves on its parent, both are marked as at that floor, and count as linear.
+    fn split_phi(&self, a: &Piece) -> (Piece, Piece) {
+        let (mut a1, mut a2) = self.phi.split(a);
+        if a.flat <= 1e-3 * self.scale && a1.flat > 0.7 * a.flat && a2.flat > 0.7 * a.flat {
+            a1.floor = true;
+            a2.floor = true;
+        }
+        (a1, a2)
     }
 
     /// LINE-INTERSECT: the chords' crossing gives `(u, v)` by linear interpolation, then Newton's
     /// method on `G(u, v) = phi(u) - cs(v)`, `J = [phi'(u), -cs'(v)]`, polishes it.
+    ///
+    /// The pieces lie within `ha`, `hb` ([`flatness`]) of their chords, so where they cross,
+    /// the chords' lines cross within `(ha + hb) / sin(angle)` along either chord: a crossing
+    /// of the lines that far outside a chord may still be this pair's root (near the end it
+    /// shares with a neighbour, whose chord can miss it on the other side).
     fn chord_intersect(&mut self, a: &Piece, b: &Piece) {
         let (ea, eb) = (a.p1 - a.p0, b.p1 - b.p0);
         let den = ea.perp_dot(eb);
@@ -213,17 +395,27 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
         } else {
             (0.5, 0.5) // parallel chords of a tangential contact: start from the middles
         };
-        let slack = 1e-6;
-        if !(alpha >= -slack && alpha <= 1.0 + slack && beta >= -slack && beta <= 1.0 + slack) {
+        // (ha + hb) / sin(angle) / |ea| = (ha + hb) |eb| / |den|.
+        let offset = (flatness(a) + flatness(b)) / den.abs();
+        let (slack_a, slack_b) = (1e-6 + offset * eb.length(), 1e-6 + offset * ea.length());
+        if !(alpha >= -slack_a
+            && alpha <= 1.0 + slack_a
+            && beta >= -slack_b
+            && beta <= 1.0 + slack_b)
+        {
             return;
         }
         let mut u = a.s0 + alpha.clamp(0.0, 1.0) * (a.s1 - a.s0);
         let mut v = b.s0 + beta.clamp(0.0, 1.0) * (b.s1 - b.s0);
         let mut residual = f64::INFINITY;
+        // How much G moves over an ulp of u and of v: where phi is fast (1e7 per unit of u
+        // where the frame turns quickly) no f64 u brings the residual below that.
+        let mut resolution = 0.0;
         for _ in 0..50 {
             let ((p, dp), (c, dc)) = (self.phi.eval(u), self.cs.eval(v));
             let g = p - c;
             residual = g.length();
+            resolution = f64::EPSILON * (dp.length() * u.abs() + dc.length() * v.abs());
             let det = dp.perp_dot(-dc);
             if det == 0.0 || !det.is_finite() {
                 break;
@@ -239,7 +431,13 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
             }
         }
         let v = v.rem_euclid(std::f64::consts::TAU);
-        if residual <= 1e-9
+        let mut tolerance = 1e-9 + 4.0 * resolution;
+        if residual > tolerance && residual < 1e-6 {
+            // Near an inflection of the axis phi itself carries rounding noise (see
+            // `split_phi`), which no (u, v) gets below.
+            tolerance += 2.0 * self.phi.noise(u);
+        }
+        if residual <= tolerance
             && u >= self.range.0
             && u <= self.range.1
             && !self.found.is_full()
@@ -262,53 +460,39 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     found: &mut Found,
 ) {
     let (lo, hi) = range;
-    // Split phi at vertical and horizontal tangents and at inflections: sign changes of the
-    // features on a grid of FEATURE_SAMPLES cells, refined by bracketed Newton iteration. (A
-    // feature root pair inside one cell, a piece bending back within 1/64 of the range, is not
-    // split; the box test then sees its end points' box, which the subdivision narrows.)
-    let mut breaks: Vec<f64> = vec![lo, hi];
-    for feature in [PhiFeature::DxDu, PhiFeature::DyDu, PhiFeature::Curvature] {
-        let f = PhiFn { cyl, o, d, feature };
-        let value = |u: f64| {
-            let r = f.eval(Dual::var(u));
-            (r.v, r.d)
-        };
-        let mut prev = (lo, value(lo).0);
-        for k in 1..=FEATURE_SAMPLES {
-            let u = lo + (hi - lo) * k as f64 / FEATURE_SAMPLES as f64;
-            let fu = value(u).0;
-            // A feature that vanishes identically (phi is a straight line) gives no split points.
-            if prev.1 == 0.0 && fu == 0.0 {
-                prev = (u, fu);
-                continue;
-            }
-            if let Some(r) = bracketed_root(&value, prev.0, u, prev.1, fu)
-                && r > lo
-                && r < hi
-            {
-                breaks.push(r);
-            }
-            prev = (u, fu);
+    let scale = cyl.section.bounding_radius();
+    // Stretches of u on which the frame is smooth: split where it may jump, the left stretch
+    // ending one float before the first float of the right one.
+    let mut stretches: ArrayVec<(f64, f64), 9> = ArrayVec::new();
+    let mut start = lo;
+    if let Framing::Frenet = cyl.framing {
+        for s in frenet_switches(&cyl.axis, lo, hi) {
+            stretches.push((start, s.next_down()));
+            start = s;
         }
     }
-    breaks.sort_by(f64::total_cmp);
-    breaks.dedup();
+    stretches.push((start, hi));
 
     let mut it = Intersector {
         phi: PhiCurve { cyl, o, d },
         cs: SectionCurve(&cyl.section),
         range: valid,
         found,
+        scale,
     };
     let vb = cyl.section.monotone_breaks();
-    for uw in breaks.windows(2) {
-        let a = it.phi.piece(uw[0], uw[1]);
+    for (u0, u1) in stretches {
+        if !(u0 < u1) {
+            continue;
+        }
+        let a = it.phi.piece(u0, u1);
         if !(a.p0.is_finite() && a.p1.is_finite()) {
             continue;
         }
+        let mut root = PhiNode::new(a);
         for vw in vb.windows(2) {
             let b = it.cs.piece(vw[0], vw[1]);
-            it.intersect(a, b, 0);
+            it.intersect(&mut root, b, 0);
         }
     }
 }
@@ -340,6 +524,150 @@ pub(crate) fn dedupe(found: &mut Found) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cylinder::FiberSpec;
+    use crate::section::{BezierLoop, Section};
+
+    /// Distance of `x` from the segment `a b`.
+    fn segment_distance(x: DVec2, a: DVec2, b: DVec2) -> f64 {
+        let e = b - a;
+        let t = ((x - a).dot(e) / e.length_squared()).clamp(0.0, 1.0);
+        if t.is_nan() {
+            return (x - a).length();
+        }
+        (x - (a + t * e)).length()
+    }
+
+    /// `examples/xray.toml`'s trilobal fiber, the axis bent out of its plane by `dx`.
+    fn xray_fiber(dx: f64) -> GeneralizedCylinder {
+        let profile: Vec<DVec2> = [
+            [1.0, 0.0],
+            [1.0, 0.35],
+            [0.55, 0.55],
+            [-0.5, 0.87],
+            [-0.45, 0.45],
+            [-0.5, 0.0],
+            [-0.5, -0.87],
+            [0.1, -0.75],
+            [0.55, -0.55],
+        ]
+        .map(DVec2::from_array)
+        .to_vec();
+        FiberSpec {
+            bezier: [
+                DVec3::new(-0.3, -1.1, 0.5),
+                DVec3::new(-0.1 + dx, -0.4, 0.6),
+                DVec3::new(0.1, 0.4, 0.4),
+                DVec3::new(0.3, 1.1, 0.5),
+            ],
+            major_radius: [0.13, 0.13],
+            minor_radius: [0.13, 0.13],
+            rotation: [0.0, 2.0],
+            caps: true,
+            normal_hint: None,
+            section: Section::Loop(BezierLoop::new(&profile).unwrap()),
+        }
+        .build()
+        .unwrap()
+    }
+
+    /// The bounds of `phi` pieces hold the curve: sampled points lie in the box and within the
+    /// bound of the chord, on pieces of widths `1e-2` down to `1e-10` around `u = 1/2` of the
+    /// xray fiber (planar, where the frame flips, and bent by `1e-6`, where it turns half round
+    /// within about `1e-6`) and of a twisted elliptical fiber; and the bound shrinks about
+    /// fourfold per halving where `phi` is smooth.
+    #[test]
+    fn phi_piece_bounds_hold_the_curve() {
+        let ellipse = FiberSpec {
+            bezier: [
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(0.35, 0.45, 0.1),
+                DVec3::new(0.75, 0.05, 0.55),
+                DVec3::new(1.05, 0.45, 0.35),
+            ],
+            major_radius: [0.03, 0.03],
+            minor_radius: [0.015, 0.015],
+            rotation: [0.0, std::f64::consts::TAU],
+            caps: true,
+            normal_hint: None,
+            section: Section::default(),
+        }
+        .build()
+        .unwrap();
+        let d = DVec3::new(0.0, 0.0, -1.0);
+        let mut checked = 0;
+        for (name, cyl, o) in [
+            ("planar", xray_fiber(0.0), DVec3::new(-0.105, 0.023, 0.0)),
+            ("bent", xray_fiber(1e-6), DVec3::new(-0.105, 0.023, 0.0)),
+            ("ellipse", ellipse, DVec3::new(0.52, 0.26, 0.0)),
+        ] {
+            let o = o - cyl.origin;
+            let phi = PhiCurve { cyl: &cyl, o, d };
+            for (k, w) in [1e-2, 1e-4, 1e-6, 1e-8, 1e-10].into_iter().enumerate() {
+                for j in 0..7 {
+                    let u0 = 0.5 - w * (0.13 + 0.31 * j as f64 + 0.05 * k as f64);
+                    let p = phi.piece(u0, u0 + w);
+                    if !p.flat.is_finite() || p.flat >= 1.0 {
+                        continue;
+                    }
+                    for i in 0..=64 {
+                        let x = phi.eval(u0 + w * i as f64 / 64.0).0;
+                        let slack = 1e-12 + phi.noise(u0 + w * i as f64 / 64.0);
+                        assert!(
+                            x.cmpge(p.lo - slack).all() && x.cmple(p.hi + slack).all(),
+                            "{name} [{u0}, {}]: {x:?} outside {:?}-{:?}",
+                            u0 + w,
+                            p.lo,
+                            p.hi
+                        );
+                        let dist = segment_distance(x, p.p0, p.p1);
+                        assert!(
+                            dist <= p.flat + slack,
+                            "{name} [{u0}, {}]: {x:?} at {dist} from the chord, bound {}",
+                            u0 + w,
+                            p.flat
+                        );
+                    }
+                    checked += 1;
+                }
+            }
+            if name == "ellipse" {
+                let (a, b) = (phi.piece(0.4, 0.41), phi.piece(0.4, 0.405));
+                assert!(b.flat < 0.3 * a.flat, "{} vs {}", b.flat, a.flat);
+            }
+        }
+        assert!(checked > 50, "{checked} pieces checked");
+    }
+
+    /// The end tangents' triangle bounds monotone, convex section pieces: sampled points are
+    /// within `flatness` of the chord, on the pieces of `monotone_breaks` and their halves and
+    /// quarters (what the fat-line test `separated` relies on).
+    #[test]
+    fn section_piece_flatness_holds() {
+        let sections = [
+            Section::Loop(BezierLoop::circle_approximation()),
+            xray_fiber(0.0).section.clone(),
+            Section::default(),
+        ];
+        for section in &sections {
+            let cs = SectionCurve(section);
+            let vb = section.monotone_breaks();
+            for w in vb.windows(2) {
+                for parts in [1, 2, 4] {
+                    for k in 0..parts {
+                        let s = |f: f64| w[0] + (w[1] - w[0]) * (k as f64 + f) / parts as f64;
+                        let p = cs.piece(s(0.0), s(1.0));
+                        let h = flatness(&p);
+                        for i in 0..=64 {
+                            let x = cs.eval(s(i as f64 / 64.0)).0;
+                            let dist = segment_distance(x, p.p0, p.p1);
+                            assert!(dist <= h + 1e-14, "{section:?} {w:?}: {dist} > {h}");
+                            assert!(x.cmpge(p.lo - 1e-14).all() && x.cmple(p.hi + 1e-14).all());
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn corrected_linearity_distance() {

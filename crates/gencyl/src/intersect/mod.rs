@@ -39,9 +39,11 @@ pub enum Method {
     Polynomial,
     /// The unit circle: `|phi(u)|^2 - 1 = 0`, a 1D root problem solved by interval subdivision.
     Radial,
-    /// Seed 2.3: split `phi` and `cs` into monotone, inflection-free pieces, subdivide pairs with
-    /// overlapping end-point boxes until both are linear, intersect the chords, polish by
-    /// Newton's method on `phi(u) = cs(v)`. Works for any section.
+    /// Seed 2.3: subdivide pairs of pieces of `phi` and `cs` whose boxes overlap until both are
+    /// linear, intersect the chords, polish by Newton's method on `phi(u) = cs(v)`. The pieces
+    /// of `cs` are monotone and inflection-free (its exact breaks), so their end points' boxes
+    /// hold them; those of `phi` carry Taylor models, whose enclosures hold them whatever their
+    /// shape (no feature of `phi` need be found). Works for any section.
     General,
 }
 
