@@ -286,6 +286,19 @@ fn leaf(bounds: Bounds, start: usize, count: usize) -> Built {
     }
 }
 
+/// An interior node over two built subtrees.
+fn interior(bounds: Bounds, axis: usize, a: Built, b: Built) -> Built {
+    Built {
+        nodes: 1 + a.nodes + b.nodes,
+        depth: 1 + a.depth.max(b.depth),
+        node: BuildNode::Interior {
+            bounds,
+            axis,
+            children: Box::new([a.node, b.node]),
+        },
+    }
+}
+
 /// Builds the subtree over `prims`, which sit at `start..` in the final index order.
 fn build(prims: &mut [Prim], start: usize, depth: usize) -> Built {
     let n = prims.len();
@@ -388,15 +401,7 @@ fn build(prims: &mut [Prim], start: usize, depth: usize) -> Built {
             build(right, start + mid, depth + 1),
         )
     };
-    Built {
-        nodes: 1 + a.nodes + b.nodes,
-        depth: 1 + a.depth.max(b.depth),
-        node: BuildNode::Interior {
-            bounds,
-            axis,
-            children: Box::new([a.node, b.node]),
-        },
-    }
+    interior(bounds, axis, a, b)
 }
 
 /// Builds a small subtree with the exact SAH: primitives sorted by centroid along the widest
@@ -453,15 +458,7 @@ fn build_small(prims: &mut [Prim], start: usize, depth: usize) -> Built {
         build_small(left, start, depth + 1),
         build_small(right, start + mid, depth + 1),
     );
-    Built {
-        nodes: 1 + a.nodes + b.nodes,
-        depth: 1 + a.depth.max(b.depth),
-        node: BuildNode::Interior {
-            bounds,
-            axis: k,
-            children: Box::new([a.node, b.node]),
-        },
-    }
+    interior(bounds, k, a, b)
 }
 
 /// Moves the elements satisfying `pred` to the front; returns how many there are.

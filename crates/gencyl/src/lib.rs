@@ -28,6 +28,8 @@ pub mod roots;
 pub mod section;
 pub mod strand;
 pub mod sweep;
+#[cfg(test)]
+mod test_rng;
 
 pub use curve::CubicBezier;
 pub use cylinder::{Aabb, FiberSpec, GeneralizedCylinder, GeometryError, Hit, Part, Ray};

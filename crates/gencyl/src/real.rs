@@ -1059,20 +1059,7 @@ mod tests {
         assert_eq!(down(f64::NEG_INFINITY), f64::NEG_INFINITY);
     }
 
-    /// A pseudo-random number generator for the Taylor model tests.
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn range(&mut self, a: f64, b: f64) -> f64 {
-            a + (b - a) * self.next()
-        }
-    }
+    use crate::test_rng::Lcg;
 
     /// A random model on `[-h, h]` and a random member `(t, value)` of its set.
     fn random_model(rng: &mut Lcg, h: f64) -> (Taylor, f64, f64) {

@@ -408,31 +408,7 @@ mod tests {
         }
     }
 
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn range(&mut self, a: f64, b: f64) -> f64 {
-            a + (b - a) * self.next()
-        }
-        fn unit(&mut self) -> DVec3 {
-            loop {
-                let v = DVec3::new(
-                    self.range(-1.0, 1.0),
-                    self.range(-1.0, 1.0),
-                    self.range(-1.0, 1.0),
-                );
-                if v.length() > 0.1 && v.length() <= 1.0 {
-                    return v.normalize();
-                }
-            }
-        }
-    }
+    use crate::test_rng::Lcg as Rng;
 
     fn v3(x: f64, y: f64, z: f64) -> DVec3 {
         DVec3::new(x, y, z)
