@@ -11,12 +11,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use gencyl_render::film::{Film, Window};
-use gencyl_render::integrator::{self, Integrator, RenderSettings};
+use gencyl_render::accel::{Scene, Scratch};
+use gencyl_render::formats::{Film, Window, hair};
 use gencyl_render::raycast::{self, RaycastOptions};
-use gencyl_render::scene::{Scene, SceneDescription, SceneError};
-use gencyl_render::world::World;
-use gencyl_render::{hair, render, synth};
+use gencyl_render::scene_file::{SceneDescription, SceneError};
+use gencyl_render::scenes::{builtin, synth};
+use gencyl_render::settings::{Integrator, RenderSettings};
+use gencyl_render::transport::{World, integrator};
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// Exact ray tracing of generalized cylinders (hair fibers).
@@ -207,7 +208,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
     pool.install(|| {
         let t0 = Instant::now();
         let desc = match &args.scene {
-            None => render::default_scene(),
+            None => builtin::default_scene(),
             Some(path) if path.extension().is_some_and(|e| e == "hair") => {
                 SceneDescription::from_hair_file(path, args.radius).map_err(anyhow::Error::msg)?
             }
@@ -224,7 +225,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
         let mut world = World::new(desc);
         let t2 = Instant::now();
         let bounds = world.bounds();
-        let mut camera = scene_camera.unwrap_or_else(|| render::framed_camera(bounds, 640, 480));
+        let mut camera = scene_camera.unwrap_or_else(|| builtin::framed_camera(bounds, 640, 480));
         if let Some(w) = args.width {
             camera.height = ((w as u64 * camera.height as u64 + camera.width as u64 / 2)
                 / camera.width as u64)
@@ -232,7 +233,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
             camera.width = w;
         }
         if world.lights.is_empty() && world.environment.is_none() {
-            let (light, env) = render::default_lighting(bounds);
+            let (light, env) = builtin::default_lighting(bounds);
             world.lights.push(light);
             world.environment = Some(env);
         }
@@ -350,7 +351,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     println!("scene,segments,load_s,bvh_s,bytes_per_segment,threads,rays,rays_per_s,hit_fraction");
     type Loader<'a> = Box<dyn Fn() -> Result<SceneDescription> + 'a>;
     let mut scenes: Vec<(&str, Loader)> = vec![
-        ("default", Box::new(|| Ok(render::default_scene()))),
+        ("default", Box::new(|| Ok(builtin::default_scene()))),
         (
             "ponytail",
             Box::new(|| Ok(SceneDescription::load(&args.ponytail)?)),
@@ -380,7 +381,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let t2 = Instant::now();
         let n = world.scene.cylinders().len();
         let mut camera =
-            camera.unwrap_or_else(|| render::framed_camera(world.bounds(), width, height));
+            camera.unwrap_or_else(|| builtin::framed_camera(world.bounds(), width, height));
         camera.width = width;
         camera.height = height;
         let rays: Vec<gencyl::Ray> = (0..height)
@@ -395,7 +396,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
             let hits: usize = pool.install(|| {
                 use rayon::prelude::*;
                 rays.par_chunks(256)
-                    .map_init(gencyl_render::scene::Scratch::default, |scratch, chunk| {
+                    .map_init(Scratch::default, |scratch, chunk| {
                         chunk
                             .iter()
                             .filter(|r| world.intersect(r, 0.0, f64::INFINITY, scratch).is_some())

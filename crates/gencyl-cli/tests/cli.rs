@@ -4,7 +4,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-use gencyl_render::synth::{FiberParams, random_fibers, random_rays, rays_csv, scene_toml};
+use gencyl_render::scenes::synth::{FiberParams, random_fibers, random_rays, rays_csv, scene_toml};
 
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -515,11 +515,11 @@ fn crop_merge_generate_and_their_errors() {
     let mut args = vec!["merge", "-o", path(&merged)];
     args.extend(parts.iter().map(|p| path(p)));
     ok_err(&args);
-    let read = |p: &Path| gencyl_render::film::Film::read_exr(p).unwrap();
+    let read = |p: &Path| gencyl_render::formats::Film::read_exr(p).unwrap();
     let (a, b) = (read(&whole), read(&merged));
     assert_eq!(a.frame, (24, 18), "frame size");
     let bits =
-        |f: &gencyl_render::film::Film| f.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        |f: &gencyl_render::formats::Film| f.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&a), bits(&b), "merged windows equal the whole frame");
 
     let nothing = scratch("nothing.png", b"");

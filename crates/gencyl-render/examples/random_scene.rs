@@ -13,8 +13,8 @@
 
 use std::time::Instant;
 
-use gencyl_render::scene::Scene;
-use gencyl_render::synth::{FiberParams, random_fibers, random_rays, rays_csv, scene_toml};
+use gencyl_render::accel::Scene;
+use gencyl_render::scenes::synth::{FiberParams, random_fibers, random_rays, rays_csv, scene_toml};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

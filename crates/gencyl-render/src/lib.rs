@@ -1,18 +1,29 @@
 //! Scenes, acceleration and rendering for `gencyl` generalized cylinders.
 //!
-//! - [`scene`]: the TOML scene file ([`scene::SceneDescription`]) and the scene ready for ray
-//!   queries ([`scene::Scene`]: the cylinders and a BVH over them; nearest, all and any hits).
-//! - [`bvh`]: a binned-SAH bounding volume hierarchy with one closure-based traversal core.
-//! - [`raycast`]: the ray file format and the batch intersection behind `gencyl raycast`.
-//! - [`cull`]: a cheap ray-space test that rejects most missed cylinders before the exact solver.
-//! - [`error`]: diagnostics that point into an input file.
-//! - [`hair`]: Cem Yuksel's `.hair` files, read as strands.
-//! - [`synth`]: seeded random fibers and rays, for tests and benchmarks.
-//! - [`render`]: a first renderer (camera, hair shading, floor, soft shadows) and the built-in
-//!   default scene.
+//! The crate is in folders by job. Imports run one way, down this list (a module may import
+//! the ones below it, never one above):
+//!
+//! - [`scenes`]: the built-in scene, the camera and lights supplied when a scene has none,
+//!   seeded generators of fibers, rays and hair models.
+//! - [`raycast`]: the batch behind `gencyl raycast`: ray files in, hits out as CSV.
+//! - [`transport`]: light transport: the [`transport::World`] a render queries and the
+//!   integrators that turn camera rays into pixels.
+//! - [`scene_file`]: the TOML scene format: parse, check, locate errors, build
+//!   ([`scene_file::SceneDescription`]), one file per table family.
+//! - [`optics`]: what light meets: the camera, lights, materials (BSDFs).
+//! - [`formats`]: file formats other than the scene file: `.hair` models, ray files and the hit
+//!   CSV, images (PNG, EXR), errors located in a text file.
+//! - [`accel`]: ray queries on geometry: the cylinders under a BVH with a ray-space cull
+//!   ([`accel::Scene`]), the analytic sphere and plane.
+//! - [`settings`], [`sampling`]: plain render settings; random streams and warps (leaves).
+//!
+//! So a new light type goes in `optics/light.rs` (and its table in `scene_file/lights.rs`), a new
+//! file format in `formats/`, a new BVH node layout in `accel/bvh/`, a new integrator in
+//! `transport/integrator.rs`.
 //!
 //! ```
-//! use gencyl_render::scene::{Scene, SceneDescription};
+//! use gencyl_render::accel::Scene;
+//! use gencyl_render::scene_file::SceneDescription;
 //! use gencyl::Ray;
 //! use glam::DVec3;
 //!
@@ -21,23 +32,34 @@
 //! let ray = Ray::new(DVec3::new(1.5, 0.0, 1.0), DVec3::new(0.0, 0.0, -1.0));
 //! let hit = scene.nearest_hit(&ray, 0.0, f64::INFINITY, &mut Default::default()).unwrap();
 //! assert_eq!((hit.object, hit.hit.t), (0, 0.9));
-//! # Ok::<(), gencyl_render::scene::SceneError>(())
+//! # // The first layout's paths still name the same items:
+//! # let _: Option<(gencyl_render::scene::Scene, gencyl_render::description::SceneDescription)> = None;
+//! # let _ = (gencyl_render::integrator::render, gencyl_render::render::default_scene);
+//! # let _: Option<(gencyl_render::film::Film, gencyl_render::world::World)> = None;
+//! # Ok::<(), gencyl_render::scene_file::SceneError>(())
 //! ```
 
-pub mod bvh;
-pub mod camera;
-pub mod cull;
-pub mod description;
-pub mod error;
-pub mod film;
-pub mod hair;
-pub mod integrator;
-pub mod light;
-pub mod material;
+pub mod accel;
+pub mod formats;
+pub mod optics;
 pub mod raycast;
-pub mod render;
 pub mod sampling;
-pub mod scene;
-pub mod shapes;
-pub mod synth;
-pub mod world;
+pub mod scene_file;
+pub mod scenes;
+pub mod settings;
+pub mod transport;
+
+// The paths of the crate's first layout (one flat folder), kept for its users.
+pub use accel::{bvh, cull, shapes};
+pub use formats::{diagnostic as error, film, hair};
+pub use optics::{camera, light, material};
+pub use scene_file as description;
+pub use scenes::{builtin as render, synth};
+pub use transport::{integrator, world};
+
+/// The cylinders ready for ray queries, and the scene file they come from (the first layout's
+/// `scene` module).
+pub mod scene {
+    pub use crate::accel::scene::*;
+    pub use crate::scene_file::{SceneDescription, SceneError};
+}

@@ -1,166 +1,17 @@
-//! Batch ray casting: the ray file format, parallel intersection, the hit CSV
-//! (interface.md section 3).
+//! The batch behind `gencyl raycast` (interface.md section 3): rays from a ray file, cast in
+//! parallel against a [`Scene`], the hits written as CSV in ray order. The file formats are in
+//! [`crate::formats::rays`] (re-exported here).
 //!
-//! # Ray file
-//!
-//! One ray per line, `ox,oy,oz,dx,dy,dz`: six numbers separated by commas, spaces or tabs
-//! around them allowed. `d` need not be unit length. Blank lines and lines starting with `#`
-//! are skipped, and so are lines starting with a letter (a header such as
-//! `ox,oy,oz,dx,dy,dz`), unless the line is six numbers (`nan,0,0,1,0,0`: a data line, and a bad
-//! one). Rays are numbered 0, 1, 2, ... among the data lines. Every number must be finite and
-//! the direction non-zero.
-//!
-//! ```
-//! use gencyl_render::raycast::parse_rays;
-//!
-//! let text = "ox,oy,oz,dx,dy,dz\n# a comment\n\n1.5,0,1, 0,0,-1\n-1, 0, 0, 1e0, 0, 0\n";
-//! let rays = parse_rays(text.as_bytes(), "rays.csv").unwrap();
-//! assert_eq!(rays.len(), 2);
-//! assert_eq!(rays[1].dir.x, 1.0);
-//!
-//! let err = parse_rays("1,2,3\n0,0,0,0,0,nan\n".as_bytes(), "rays.csv").unwrap_err();
-//! assert_eq!(err.to_string(), "rays.csv:1: expected 6 numbers, found 3");
-//! ```
-//!
-//! # Output
-//!
-//! CSV, the header `ray,t,u,v,nx,ny,nz,object,part`, then one row per hit: the ray's number,
-//! the hit's `t`, `u`, `v`, unit outward normal, cylinder number and part (0 side, 1 cap at
-//! `u = 0`, 2 cap at `u = 1`). Numbers are written in the shortest form that reads back to
-//! the same `f64` (so with full precision), in exponent form below `1e-7` or from `1e16` in
-//! magnitude, and `-0` as `0`.
+//! Imports: [`crate::accel`] and [`crate::formats`].
 
-use std::fmt;
-use std::io::{self, BufRead, Write};
+use std::io::{self, Write};
 use std::time::{Duration, Instant};
 
-use gencyl::{Part, Ray};
-use glam::DVec3;
+use gencyl::Ray;
 use rayon::prelude::*;
 
-use crate::scene::{Scene, SceneHit, Scratch};
-
-/// Why a ray file could not be read.
-#[derive(Debug, thiserror::Error)]
-pub enum RayFileError {
-    /// The file could not be read.
-    #[error("{path}: cannot read: {error}")]
-    Read {
-        /// The file's name as given.
-        path: String,
-        /// Why.
-        error: io::Error,
-    },
-    /// A line is not a valid ray.
-    #[error("{path}:{line}: {message}")]
-    Invalid {
-        /// The file's name as given.
-        path: String,
-        /// 1-based line number in the file (counting every line).
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-}
-
-/// The names of a ray's six numbers, for messages.
-const FIELDS: [&str; 6] = ["ox", "oy", "oz", "dx", "dy", "dz"];
-
-/// Reads the ray file at `path` (`-` for standard input): every ray, validated. Nothing is
-/// returned unless every line is valid.
-pub fn read_rays(path: &str) -> Result<Vec<Ray>, RayFileError> {
-    if path == "-" {
-        parse_rays(io::stdin().lock(), "<stdin>")
-    } else {
-        let f = std::fs::File::open(path).map_err(|error| RayFileError::Read {
-            path: path.to_string(),
-            error,
-        })?;
-        parse_rays(io::BufReader::with_capacity(1 << 16, f), path)
-    }
-}
-
-/// Parses a ray file from `reader`; `name` is the file's name for messages. Reads line by
-/// line, so only the rays are held in memory.
-pub fn parse_rays(mut reader: impl BufRead, name: &str) -> Result<Vec<Ray>, RayFileError> {
-    let mut rays = Vec::new();
-    let mut buf = Vec::new();
-    let mut line_no = 0;
-    loop {
-        buf.clear();
-        let n = reader
-            .read_until(b'\n', &mut buf)
-            .map_err(|error| RayFileError::Read {
-                path: name.to_string(),
-                error,
-            })?;
-        if n == 0 {
-            break;
-        }
-        line_no += 1;
-        let bad = |message: String| RayFileError::Invalid {
-            path: name.to_string(),
-            line: line_no,
-            message,
-        };
-        let Ok(text) = std::str::from_utf8(&buf) else {
-            return Err(bad("the line is not valid UTF-8 text".to_string()));
-        };
-        let text = if line_no == 1 {
-            text.trim_start_matches('\u{feff}')
-        } else {
-            text
-        };
-        if let Some(ray) = parse_line(text).map_err(bad)? {
-            rays.push(ray);
-        }
-    }
-    Ok(rays)
-}
-
-/// One line: `Ok(None)` for a line to skip, the ray, or what is wrong.
-fn parse_line(text: &str) -> Result<Option<Ray>, String> {
-    let text = text.trim();
-    let header = text.starts_with(|c: char| c.is_alphabetic());
-    if text.is_empty() || text.starts_with('#') {
-        return Ok(None);
-    }
-    let fields: Vec<&str> = text.split(',').map(str::trim).collect();
-    let numbers: Vec<Result<f64, _>> = fields.iter().map(|f| f.parse::<f64>()).collect();
-    if header && (fields.len() != 6 || numbers.iter().any(Result::is_err)) {
-        return Ok(None);
-    }
-    if fields.len() != 6 {
-        return Err(format!("expected 6 numbers, found {}", fields.len()));
-    }
-    let mut v = [0.0; 6];
-    for (i, (f, x)) in fields.iter().zip(numbers).enumerate() {
-        v[i] = match x {
-            Ok(x) if x.is_finite() => x,
-            Ok(x) => return Err(format!("{} is not finite ({x})", FIELDS[i])),
-            Err(_) if f.is_empty() => return Err(format!("{} is missing", FIELDS[i])),
-            Err(_) => {
-                return Err(format!(
-                    "{} is not a number: {:?}",
-                    FIELDS[i],
-                    truncate(f, 40)
-                ));
-            }
-        };
-    }
-    let ray = Ray::new(DVec3::new(v[0], v[1], v[2]), DVec3::new(v[3], v[4], v[5]));
-    if ray.dir == DVec3::ZERO {
-        return Err("the direction (dx, dy, dz) is zero".to_string());
-    }
-    Ok(Some(ray))
-}
-
-fn truncate(s: &str, n: usize) -> String {
-    match s.char_indices().nth(n) {
-        Some((i, _)) => format!("{}...", &s[..i]),
-        None => s.to_string(),
-    }
-}
+use crate::accel::{Scene, SceneHit, Scratch};
+pub use crate::formats::rays::{HEADER, Num, RayFileError, format_row, parse_rays, read_rays};
 
 /// What [`raycast`] reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -191,9 +42,6 @@ impl RaycastStats {
 const CHUNK: usize = 256;
 /// Rays intersected before their rows are written: bounds the memory held for output.
 const BLOCK: usize = 1 << 13;
-
-/// The CSV header.
-pub const HEADER: &str = "ray,t,u,v,nx,ny,nz,object,part";
 
 /// Casts every ray against the scene on the current rayon pool and writes the CSV (header and
 /// rows, in ray order) to `out`. Rows are for hits with `t > tmin`: the nearest per ray, or
@@ -291,150 +139,12 @@ pub fn cast(
     }
 }
 
-/// One CSV row, with its newline.
-pub fn format_row(s: &mut String, ray: usize, h: &SceneHit) {
-    use fmt::Write as _;
-    let x = &h.hit;
-    let part = match x.part {
-        Part::Side => 0,
-        Part::StartCap => 1,
-        Part::EndCap => 2,
-    };
-    let n = x.normal;
-    let _ = writeln!(
-        s,
-        "{ray},{},{},{},{},{},{},{},{part}",
-        Num(x.t),
-        Num(x.u),
-        Num(x.v),
-        Num(n.x),
-        Num(n.y),
-        Num(n.z),
-        h.object
-    );
-}
-
-/// An `f64` for the CSV: shortest round-trip digits, `-0` as `0`, exponent form for very large
-/// or small magnitudes (where plain notation would print hundreds of zeros).
-#[derive(Clone, Copy, Debug)]
-pub struct Num(pub f64);
-
-impl fmt::Display for Num {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let x = if self.0 == 0.0 { 0.0 } else { self.0 };
-        let a = x.abs();
-        if x == 0.0 || (1e-7..1e16).contains(&a) || !a.is_finite() {
-            write!(f, "{x}")
-        } else {
-            write!(f, "{x:e}")
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use glam::DVec3;
+
     use super::*;
-    use crate::scene::SceneDescription;
-
-    fn err(text: &str) -> String {
-        parse_rays(text.as_bytes(), "rays.csv")
-            .unwrap_err()
-            .to_string()
-    }
-
-    #[test]
-    fn skips_headers_comments_blanks() {
-        let t = "\u{feff}ox, oy, oz, dx, dy, dz\r\n\r\n  # c\n\t1, 2, 3, 4, 5, 6 \r\nX\n+1,-2,.5,5.,1e-3,-0\n";
-        let rays = parse_rays(t.as_bytes(), "r").unwrap();
-        assert_eq!(rays.len(), 2, "{rays:?}");
-        assert_eq!(
-            rays[1].origin,
-            DVec3::new(1.0, -2.0, 0.5),
-            "signs and forms"
-        );
-        assert_eq!(rays[1].dir, DVec3::new(5.0, 1e-3, 0.0), "signs and forms");
-        assert!(
-            parse_rays("".as_bytes(), "r").unwrap().is_empty(),
-            "empty file"
-        );
-        assert!(
-            parse_rays("\n\n".as_bytes(), "r").unwrap().is_empty(),
-            "blank file"
-        );
-        // No final newline.
-        assert_eq!(
-            parse_rays("1,2,3,4,5,6".as_bytes(), "r").unwrap().len(),
-            1,
-            "no final newline"
-        );
-    }
-
-    #[test]
-    fn bad_lines_name_the_line() {
-        assert_eq!(
-            err("#\n1,2,3,4,5\n"),
-            "rays.csv:2: expected 6 numbers, found 5"
-        );
-        assert_eq!(
-            err("1,2,3,4,5,6,\n"),
-            "rays.csv:1: expected 6 numbers, found 7"
-        );
-        assert_eq!(err("1,2,3,4,5,NaN\n"), "rays.csv:1: dz is not finite (NaN)");
-        assert_eq!(
-            err("1,2,3,4,5,1e400\n"),
-            "rays.csv:1: dz is not finite (inf)"
-        );
-        assert_eq!(err("nan,2,3,4,5,6\n"), "rays.csv:1: ox is not finite (NaN)");
-        assert_eq!(
-            err("1,2,3,0,0,-0\n"),
-            "rays.csv:1: the direction (dx, dy, dz) is zero"
-        );
-        assert_eq!(err("1,2,,4,5,6\n"), "rays.csv:1: oz is missing");
-        assert_eq!(
-            err("1,2,3,4,5,6x\n"),
-            "rays.csv:1: dz is not a number: \"6x\""
-        );
-        assert_eq!(
-            err("1 2 3 4 5 6\n"),
-            "rays.csv:1: expected 6 numbers, found 1"
-        );
-        assert_eq!(
-            err("1,2,3,4,5,6\n\u{2603}\n"),
-            "rays.csv:2: expected 6 numbers, found 1"
-        );
-        let e = parse_rays(&b"1,2,3,4,5,6\n\xff\xfe\n"[..], "rays.csv")
-            .unwrap_err()
-            .to_string();
-        assert_eq!(e, "rays.csv:2: the line is not valid UTF-8 text");
-    }
-
-    #[test]
-    fn numbers_are_shortest_round_trip() {
-        let f = |x: f64| Num(x).to_string();
-        assert_eq!(f(-0.0), "0");
-        assert_eq!(f(0.9), "0.9");
-        assert_eq!(f(1.0), "1");
-        assert_eq!(f(-1.5), "-1.5");
-        assert_eq!(f(1e-17), "1e-17");
-        assert_eq!(f(1e300), "1e300");
-        for x in [
-            0.1 + 0.2,
-            std::f64::consts::PI,
-            1.0 / 3.0,
-            1e-7,
-            123456789.12345679,
-            2.5e-8,
-            1e16,
-            9.99e15,
-        ] {
-            assert_eq!(
-                f(x).parse::<f64>().unwrap(),
-                x,
-                "{x} round trips via {}",
-                f(x)
-            );
-        }
-    }
+    use crate::scene_file::{SceneDescription, SceneError};
 
     #[test]
     fn extreme_rays_do_not_panic() {
@@ -636,9 +346,7 @@ mod tests {
             }
             let _ = SceneDescription::parse_bytes(&bytes, "s").map(|d| Scene::new(d.cylinders));
             let _ = parse_rays(&bytes[..], "r");
-            if let Err(crate::scene::SceneError::Invalid(d)) =
-                SceneDescription::parse_bytes(&bytes, "s")
-            {
+            if let Err(SceneError::Invalid(d)) = SceneDescription::parse_bytes(&bytes, "s") {
                 let _ = d.render();
             }
         }

@@ -2,12 +2,13 @@
 //! light falloff; and the run-level guarantees (thread count, crop windows).
 
 use gencyl::Ray;
-use gencyl_render::camera::Camera;
-use gencyl_render::film::{Film, Window};
-use gencyl_render::integrator::{self, Buffers, Integrator, RenderSettings};
+use gencyl_render::formats::{Film, Window};
+use gencyl_render::optics::Camera;
 use gencyl_render::sampling::SampleRng;
-use gencyl_render::scene::SceneDescription;
-use gencyl_render::world::World;
+use gencyl_render::scene_file::SceneDescription;
+use gencyl_render::settings::{Integrator, RenderSettings};
+use gencyl_render::transport::World;
+use gencyl_render::transport::integrator::{self, Buffers};
 use glam::DVec3;
 
 /// A world and its camera from scene text.
@@ -123,7 +124,7 @@ fn xray_lengths_match_chords() {
         position: DVec3::new(1.5, 0.0, 5.0),
         look_at: DVec3::new(1.5, 0.0, 0.0),
         up: DVec3::Y,
-        projection: gencyl_render::camera::Projection::Orthographic { height: 0.001 },
+        projection: gencyl_render::optics::Projection::Orthographic { height: 0.001 },
         width: 1,
         height: 1,
     };
@@ -222,7 +223,7 @@ fn beer_lambert_through_a_fiber() {
              [environment]\ncolor = 1\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n"
         );
         let (w, cam) = world(&src);
-        let f = gencyl_render::material::fresnel_dielectric(1.0, eta);
+        let f = gencyl_render::optics::material::fresnel_dielectric(1.0, eta);
         let a: f64 = sigma * 2.0 * r;
         let want = f + (1.0 - f).powi(2) * (-a).exp() / (1.0 - f * (-a).exp());
         let ray = Ray::new(DVec3::new(0.3, 0.0, 5.0), -DVec3::Z);
@@ -256,7 +257,7 @@ fn sphere_light_falloff() {
 
 /// A small copy of the built-in scene.
 fn small_default() -> (World, Camera, RenderSettings) {
-    let d = gencyl_render::render::default_scene();
+    let d = gencyl_render::scenes::builtin::default_scene();
     let mut cam = d.camera.unwrap();
     cam.width = 32;
     cam.height = 24;

@@ -171,7 +171,7 @@ pub fn rays_csv(rays: &[Ray]) -> String {
 /// A generated head of hair for scale tests: `strands` strands of `segments` segments rooted
 /// on the upper part of a unit-radius scalp at the origin, growing out from it, falling under
 /// gravity and waving; thickness (diameter) 0.004 at the root, 0.002 at the tip. Returns the
-/// points of each strand, root first, and their thickness, as [`crate::hair::write_hair`]
+/// points of each strand, root first, and their thickness, as [`crate::formats::hair::write_hair`]
 /// takes them.
 pub fn hair_model(strands: usize, segments: usize, seed: u64) -> (Vec<Vec<DVec3>>, Vec<Vec<f64>>) {
     use rayon::prelude::*;
@@ -227,7 +227,7 @@ pub fn hair_model(strands: usize, segments: usize, seed: u64) -> (Vec<Vec<DVec3>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::SceneDescription;
+    use crate::scene_file::SceneDescription;
 
     #[test]
     fn written_scene_reads_back() {

@@ -15,91 +15,20 @@
 //! [`SampleRng::new`]`(x, y, sample, seed)` in full-frame coordinates, so its value does not
 //! depend on the thread count or the crop window.
 
-use std::str::FromStr;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use gencyl::{Part, Ray};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::camera::Camera;
-use crate::film::{Film, Window};
-use crate::light::Light;
-use crate::material::{Bsdf, Material};
+use crate::accel::{SceneHit, Scratch};
+use crate::formats::film::{Film, Window};
+use crate::optics::camera::Camera;
+use crate::optics::light::Light;
+use crate::optics::material::{Bsdf, Material};
 use crate::sampling::{SampleRng, power_heuristic};
-use crate::scene::{SceneHit, Scratch};
-use crate::world::{Crossing, Surface, World, WorldHit};
-
-/// What each pixel shows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Integrator {
-    /// The outward normal, `(n + 1) / 2`.
-    Normals,
-    /// `(u, v / 2 pi, part / 2)`.
-    Uv,
-    /// Grey `1 / (1 + t / t_focus)` (`t_focus` the camera's distance to `look_at`), raw `Z`.
-    Depth,
-    /// Direct lighting.
-    Direct,
-    /// Path tracing.
-    Path,
-    /// X-ray path length and transmittance.
-    Xray,
-}
-
-impl FromStr for Integrator {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        Ok(match s {
-            "normals" => Integrator::Normals,
-            "uv" => Integrator::Uv,
-            "depth" => Integrator::Depth,
-            "direct" => Integrator::Direct,
-            "path" => Integrator::Path,
-            "xray" => Integrator::Xray,
-            _ => {
-                return Err(format!(
-                    "unknown integrator `{s}`: expected normals, uv, depth, direct, path or xray"
-                ));
-            }
-        })
-    }
-}
-
-impl Integrator {
-    /// The film's channels.
-    pub fn channels(self) -> &'static [&'static str] {
-        match self {
-            Integrator::Depth => &["R", "G", "B", "A", "Z"],
-            Integrator::Xray => &["R", "G", "B", "A", "L"],
-            _ => &["R", "G", "B", "A"],
-        }
-    }
-}
-
-/// How to render.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RenderSettings {
-    /// The integrator.
-    pub integrator: Integrator,
-    /// Samples per pixel.
-    pub spp: u32,
-    /// Most scattering events on a path (specular ones included).
-    pub max_depth: u32,
-    /// Seed of the per-pixel sample streams.
-    pub seed: u64,
-}
-
-impl Default for RenderSettings {
-    fn default() -> Self {
-        RenderSettings {
-            integrator: Integrator::Path,
-            spp: 16,
-            max_depth: 16,
-            seed: 1,
-        }
-    }
-}
+pub use crate::settings::{Integrator, RenderSettings};
+use crate::transport::world::{Crossing, Surface, World, WorldHit};
 
 /// Offsets a ray's origin off the surface at `p` (normal `n`) to the side `dir` goes, by
 /// `1e-9 (1 + |p|_inf)`: far above the hits' error (about `1e-12` of the scene's size), far

@@ -292,7 +292,7 @@ fn segment_distance2(a: DVec2, b: DVec2) -> f64 {
 mod tests {
     use super::*;
     use crate::sampling::SampleRng as Rng;
-    use crate::synth::{FiberParams, random_fibers};
+    use crate::scenes::synth::{FiberParams, random_fibers};
 
     #[test]
     fn never_rejects_a_ray_through_the_surface() {

@@ -10,8 +10,8 @@ use std::f64::consts::{PI, TAU};
 use gencyl::Ray;
 use glam::DVec3;
 
+use crate::accel::shapes::Sphere;
 use crate::sampling::{basis, uniform_cone, uniform_sphere};
-use crate::shapes::Sphere;
 
 /// A light source other than the environment.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -4,11 +4,11 @@
 use gencyl::{Aabb, Part, Ray};
 use glam::DVec3;
 
-use crate::description::SceneDescription;
-use crate::light::{Environment, Light};
-use crate::material::{Material, SceneMaterial, ShadingPoint};
-use crate::scene::{Scene, SceneHit, Scratch};
-use crate::shapes::{Plane, Sphere};
+use crate::accel::shapes::{Plane, Sphere};
+use crate::accel::{Scene, SceneHit, Scratch};
+use crate::optics::light::{Environment, Light};
+use crate::optics::material::{Material, SceneMaterial, ShadingPoint};
+use crate::scene_file::SceneDescription;
 
 /// What a ray hit.
 #[derive(Clone, Copy, Debug, PartialEq)]

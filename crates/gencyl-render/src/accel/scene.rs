@@ -1,13 +1,10 @@
-//! The scene ready for ray queries: cylinders and a BVH over them.
-//!
-//! The scene file format lives in [`crate::description`]; its types are re-exported here.
+//! The scene ready for ray queries: cylinders and a BVH over pieces of their axes.
 
 use gencyl::{GeneralizedCylinder, Hit, Ray, Section};
 use rayon::prelude::*;
 
-use crate::bvh::Bvh;
-use crate::cull::{Piece, RaySpace, level_for, piece_bounds};
-pub use crate::description::{SceneDescription, SceneError};
+use crate::accel::bvh::Bvh;
+use crate::accel::cull::{Piece, RaySpace, level_for, piece_bounds};
 
 /// A hit on a scene: the cylinder's hit and the cylinder's number.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -42,7 +39,7 @@ pub struct Scratch {
 /// BVH keys: cylinder number in the high bits, the piece's heap index (< 16) in the low 4.
 const PIECE_BITS: u32 = 4;
 const _: () = assert!(
-    2 << crate::cull::MAX_LEVEL <= 1 << PIECE_BITS,
+    2 << crate::accel::cull::MAX_LEVEL <= 1 << PIECE_BITS,
     "piece index fits its bits"
 );
 

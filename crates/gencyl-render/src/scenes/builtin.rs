@@ -4,13 +4,13 @@
 use gencyl::Aabb;
 use glam::DVec3;
 
-use crate::camera::{Camera, Projection};
-use crate::description::SceneDescription;
-use crate::light::{Environment, Light};
-use crate::shapes::Sphere;
+use crate::accel::shapes::Sphere;
+use crate::optics::camera::{Camera, Projection};
+use crate::optics::light::{Environment, Light};
+use crate::scene_file::SceneDescription;
 
 /// The built-in scene's file (`examples/default.toml`), embedded in the binary.
-pub const DEFAULT_SCENE: &str = include_str!("../../../examples/default.toml");
+pub const DEFAULT_SCENE: &str = include_str!("../../../../examples/default.toml");
 
 /// The built-in scene: a tuft of 48 curly fibers, round, elliptical and flat, some twisted,
 /// on a floor under a spherical light and a sky gradient.

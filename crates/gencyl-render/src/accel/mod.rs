@@ -1,0 +1,20 @@
+//! Acceleration: ray queries on the geometry of a scene.
+//!
+//! - [`scene`]: the [`Scene`], the cylinders under a BVH over pieces of their axes, queried for
+//!   the nearest hit, every hit or any hit;
+//! - [`bvh`]: the bounding volume hierarchy (node layout and traversal in `bvh/mod.rs`, the
+//!   binned-SAH builder in `bvh/build.rs`);
+//! - [`cull`]: the ray-space test that rejects most missed axis pieces before the exact solver;
+//! - [`shapes`]: the analytic sphere and plane.
+//!
+//! Imports: the geometry crate only (its tests draw random fibers from
+//! [`crate::scenes::synth`]). Everything that queries geometry builds on this.
+
+pub mod bvh;
+pub mod cull;
+pub mod scene;
+pub mod shapes;
+
+pub use bvh::Bvh;
+pub use scene::{Scene, SceneHit, Scratch, sort_hits};
+pub use shapes::{Plane, Sphere};

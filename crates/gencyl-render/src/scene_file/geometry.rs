@@ -1,0 +1,407 @@
+//! The geometry tables: `[[cylinder]]` (interface.md section 2), `[[strand]]`, `[[hair]]`,
+//! `[[sphere]]`, `[[plane]]`, and the `transform` they share.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::Path;
+
+use gencyl::section::ProfileError;
+use gencyl::{BezierLoop, FiberSpec, GeneralizedCylinder, GeometryError, Section, Strand};
+use glam::{DQuat, DVec2, DVec3};
+use rayon::prelude::*;
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::SceneDescription;
+use super::materials::{FIBER_MATERIAL, Materials};
+use super::values::*;
+use crate::accel::{Plane, Sphere};
+use crate::formats::hair::parse_hair;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawCylinder {
+    pub(super) bezier: Spanned<Array<Array<f64, 3>, 4>>,
+    pub(super) major_radius: Spanned<Array<f64, 2>>,
+    pub(super) minor_radius: Option<Spanned<Array<f64, 2>>>,
+    pub(super) rotation: Option<Spanned<Array<f64, 2>>>,
+    pub(super) caps: Option<bool>,
+    pub(super) normal_hint: Option<Spanned<Array<f64, 3>>>,
+    pub(super) profile: Option<Spanned<Vec<Array<f64, 2>>>>,
+    pub(super) material: Option<Spanned<String>>,
+    pub(super) transform: Option<Spanned<RawTransform>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawStrand {
+    pub(super) points: Option<Spanned<Vec<Array<f64, 3>>>>,
+    pub(super) control_points: Option<Spanned<Vec<Array<f64, 3>>>>,
+    pub(super) radius: Spanned<Array<f64, 2>>,
+    pub(super) ellipticity: Option<Spanned<f64>>,
+    pub(super) twist: Option<Spanned<Array<f64, 2>>>,
+    pub(super) profile: Option<Spanned<Vec<Array<f64, 2>>>>,
+    pub(super) material: Option<Spanned<String>>,
+    pub(super) transform: Option<Spanned<RawTransform>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawHair {
+    pub(super) file: Spanned<String>,
+    pub(super) radius: Option<Spanned<f64>>,
+    pub(super) ellipticity: Option<Spanned<f64>>,
+    pub(super) twist: Option<Spanned<Array<f64, 2>>>,
+    pub(super) material: Option<Spanned<String>>,
+    pub(super) transform: Option<Spanned<RawTransform>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawSphere {
+    pub(super) center: Spanned<Array<f64, 3>>,
+    pub(super) radius: Spanned<f64>,
+    pub(super) material: Option<Spanned<String>>,
+    pub(super) transform: Option<Spanned<RawTransform>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawPlane {
+    pub(super) point: Spanned<Array<f64, 3>>,
+    pub(super) normal: Spanned<Array<f64, 3>>,
+    pub(super) material: Option<Spanned<String>>,
+    pub(super) transform: Option<Spanned<RawTransform>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawTransform {
+    pub(super) scale: Option<Spanned<f64>>,
+    pub(super) rotate: Option<Spanned<Array<f64, 4>>>,
+    pub(super) translate: Option<Spanned<Array<f64, 3>>>,
+}
+
+/// A similarity transform `p -> R (s p) + t`: uniform scale, then rotation, then translation.
+/// (A fiber under a non-uniform scale would no longer be a swept scaled section, so the format
+/// has none.)
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Similarity {
+    /// Uniform scale, positive.
+    pub scale: f64,
+    /// Rotation.
+    pub rotation: DQuat,
+    /// Translation.
+    pub translation: DVec3,
+}
+
+impl Default for Similarity {
+    fn default() -> Self {
+        Similarity {
+            scale: 1.0,
+            rotation: DQuat::IDENTITY,
+            translation: DVec3::ZERO,
+        }
+    }
+}
+
+impl Similarity {
+    /// The image of a point.
+    pub fn point(&self, p: DVec3) -> DVec3 {
+        self.rotation * (self.scale * p) + self.translation
+    }
+
+    /// The image of a direction (not scaled).
+    pub fn direction(&self, v: DVec3) -> DVec3 {
+        self.rotation * v
+    }
+}
+
+/// `transform = { scale = s, rotate = [ax, ay, az, degrees], translate = [x, y, z] }`.
+pub(super) fn transform(t: &Option<Spanned<RawTransform>>) -> Result<Similarity, Problem> {
+    let Some(t) = t else {
+        return Ok(Similarity::default());
+    };
+    let t = t.get_ref();
+    let mut out = Similarity::default();
+    if let Some(s) = &t.scale {
+        out.scale = number(s, "transform scale", 0.0, f64::INFINITY, true)?;
+    }
+    if let Some(r) = &t.rotate {
+        let [x, y, z, deg] = val(r);
+        let axis = DVec3::new(x, y, z);
+        if !(axis.is_finite() && deg.is_finite() && axis.length_squared() > 0.0) {
+            return Err((
+                r.span(),
+                format!(
+                    "transform rotate must be [axis x, y, z, degrees], finite, with a non-zero axis, got {:?}",
+                    val(r)
+                ),
+            ));
+        }
+        out.rotation = DQuat::from_axis_angle(axis.normalize(), deg.to_radians());
+    }
+    if let Some(tr) = &t.translate {
+        out.translation = vec3(tr, "transform translate")?;
+    }
+    Ok(out)
+}
+
+/// A profile (`profile` key) as a section.
+pub(super) fn section(p: &Option<Spanned<Vec<Array<f64, 2>>>>) -> Result<Section, Problem> {
+    let Some(p) = p else {
+        return Ok(Section::default());
+    };
+    let pts: Vec<DVec2> = p.get_ref().iter().map(|q| DVec2::from_array(q.0)).collect();
+    let lp = BezierLoop::new(&pts).map_err(|e| {
+        let why = match e {
+            ProfileError::NotFinite(i) => {
+                format!("profile point {i} is not finite: {:?}", p.get_ref()[i].0)
+            }
+            e => format!("bad profile: {e}"),
+        };
+        (p.span(), why)
+    })?;
+    Ok(Section::Loop(lp))
+}
+
+/// Checks one `[[cylinder]]` table and builds its cylinder.
+pub(super) fn build_cylinder(
+    c: &RawCylinder,
+    table: Range<usize>,
+) -> Result<GeneralizedCylinder, Problem> {
+    let bezier = val(&c.bezier).map(|p| p.0);
+    if let Some(i) = bezier.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+        return Err((
+            c.bezier.span(),
+            format!("bezier control point {i} is not finite: {:?}", bezier[i]),
+        ));
+    }
+    let radius = |name: &str, r: &Spanned<Array<f64, 2>>| -> Result<[f64; 2], Problem> {
+        let v = val(r);
+        if !v.iter().all(|x| x.is_finite()) {
+            return Err((r.span(), format!("{name} must be finite, got {v:?}")));
+        }
+        if !v.iter().all(|&x| x > 0.0) {
+            return Err((
+                r.span(),
+                format!("{name} must be positive at both ends, got {v:?}"),
+            ));
+        }
+        Ok(v)
+    };
+    let major = radius("major_radius", &c.major_radius)?;
+    let minor = c
+        .minor_radius
+        .as_ref()
+        .map_or(Ok(major), |r| radius("minor_radius", r))?;
+    let rotation = match &c.rotation {
+        Some(r) if !val(r).iter().all(|x| x.is_finite()) => {
+            return Err((
+                r.span(),
+                format!("rotation must be finite, got {:?}", val(r)),
+            ));
+        }
+        Some(r) => val(r),
+        None => [0.0, 0.0],
+    };
+    let normal_hint = match &c.normal_hint {
+        Some(h) => {
+            let v = DVec3::from_array(val(h));
+            if !v.is_finite() || v == DVec3::ZERO {
+                return Err((
+                    h.span(),
+                    format!(
+                        "normal_hint must be a finite non-zero vector, got {:?}",
+                        val(h)
+                    ),
+                ));
+            }
+            Some(v)
+        }
+        None => None,
+    };
+    let xf = transform(&c.transform)?;
+    let spec = FiberSpec {
+        bezier: bezier.map(|p| xf.point(DVec3::from_array(p))),
+        major_radius: major.map(|r| r * xf.scale),
+        minor_radius: minor.map(|r| r * xf.scale),
+        rotation,
+        caps: c.caps.unwrap_or(true),
+        normal_hint: normal_hint.map(|h| xf.direction(h)),
+        section: section(&c.profile)?,
+    };
+    spec.build().map_err(|e| {
+        let span = match (&e, &c.normal_hint) {
+            (GeometryError::BadNormalHint, Some(h)) => h.span(),
+            (GeometryError::Sweep(_), _) => table,
+            _ => c.bezier.span(),
+        };
+        (span, e.to_string())
+    })
+}
+
+/// Ellipticity (minor / major radius) and twist keys shared by strands and hair files.
+pub(super) fn strand_shape(
+    ellipticity: &Option<Spanned<f64>>,
+    twist: &Option<Spanned<Array<f64, 2>>>,
+) -> Result<(f64, [f64; 2]), Problem> {
+    let e = match ellipticity {
+        Some(e) => number(e, "ellipticity", 0.0, 1.0, true)?,
+        None => 1.0,
+    };
+    let tw = match twist {
+        Some(t) if !val(t).iter().all(|x| x.is_finite()) => {
+            return Err((t.span(), format!("twist must be finite, got {:?}", val(t))));
+        }
+        Some(t) => val(t),
+        None => [0.0, 0.0],
+    };
+    Ok((e, tw))
+}
+
+/// Checks one `[[strand]]` table and builds its segments.
+pub(super) fn build_strand(
+    s: &RawStrand,
+    table: Range<usize>,
+) -> Result<Vec<GeneralizedCylinder>, Problem> {
+    let (pts, through) = match (&s.points, &s.control_points) {
+        (Some(p), None) => (p, true),
+        (None, Some(c)) => (c, false),
+        (Some(_), Some(c)) => {
+            return Err((
+                c.span(),
+                "give either `points` or `control_points`, not both".into(),
+            ));
+        }
+        (None, None) => {
+            return Err((table, "a strand needs `points` or `control_points`".into()));
+        }
+    };
+    let xf = transform(&s.transform)?;
+    let mut points = Vec::with_capacity(pts.get_ref().len());
+    for (i, p) in pts.get_ref().iter().enumerate() {
+        let v = DVec3::from_array(p.0);
+        if !v.is_finite() {
+            return Err((pts.span(), format!("point {i} is not finite: {:?}", p.0)));
+        }
+        if points.last() == Some(&xf.point(v)) {
+            return Err((pts.span(), format!("point {i} repeats point {}", i - 1)));
+        }
+        points.push(xf.point(v));
+    }
+    if points.len() < 2 {
+        return Err((pts.span(), "a strand needs at least 2 points".into()));
+    }
+    let r = val(&s.radius);
+    if !r.iter().all(|x| x.is_finite() && *x > 0.0) {
+        return Err((
+            s.radius.span(),
+            format!("radius must be positive and finite at root and tip, got {r:?}"),
+        ));
+    }
+    let (ellipticity, twist) = strand_shape(&s.ellipticity, &s.twist)?;
+    let strand = Strand {
+        points: if through {
+            Strand::interpolating_control_points(&points)
+        } else {
+            points
+        },
+        radius: r.map(|x| x * xf.scale),
+        ellipticity,
+        twist,
+        section: section(&s.profile)?,
+    };
+    strand
+        .cylinders()
+        .map_err(|(seg, e)| (pts.span(), format!("segment {seg}: {e}")))
+}
+
+/// Checks one `[[sphere]]` table and builds its sphere.
+pub(super) fn build_sphere(r: &RawSphere) -> Result<Sphere, Problem> {
+    let xf = transform(&r.transform)?;
+    Ok(Sphere {
+        center: xf.point(vec3(&r.center, "center")?),
+        radius: number(&r.radius, "radius", 0.0, f64::INFINITY, true)? * xf.scale,
+    })
+}
+
+/// Checks one `[[plane]]` table and builds its plane.
+pub(super) fn build_plane(r: &RawPlane) -> Result<Plane, Problem> {
+    let xf = transform(&r.transform)?;
+    Ok(Plane {
+        point: xf.point(vec3(&r.point, "point")?),
+        normal: xf.direction(direction(&r.normal, "normal")?),
+    })
+}
+
+/// Reads one `[[hair]]` file (relative to the scene's folder) and builds its strands.
+pub(super) fn build_hair(h: &RawHair, base: &Path) -> Result<Vec<GeneralizedCylinder>, Problem> {
+    let file = h.file.get_ref();
+    let radius = match &h.radius {
+        Some(r) => Some(number(r, "radius", 0.0, f64::INFINITY, true)?),
+        None => None,
+    };
+    let (ellipticity, twist) = strand_shape(&h.ellipticity, &h.twist)?;
+    let xf = transform(&h.transform)?;
+    hair_cylinders(&base.join(file), file, radius, ellipticity, twist, xf)
+        .map_err(|e| (h.file.span(), e))
+}
+
+/// The cylinders of a hair file's strands (through the file's points), radius from the
+/// file's thickness unless given; the error names the file and the strand.
+pub(super) fn hair_cylinders(
+    path: &Path,
+    file: &str,
+    radius: Option<f64>,
+    ellipticity: f64,
+    twist: [f64; 2],
+    xf: Similarity,
+) -> Result<Vec<GeneralizedCylinder>, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {file}: {e}"))?;
+    let hair = parse_hair(&bytes, file).map_err(|e| e.to_string())?;
+    let built: Vec<_> = hair
+        .to_strands(radius)
+        .into_par_iter()
+        .enumerate()
+        .map(|(i, mut s)| {
+            for p in &mut s.points {
+                *p = xf.point(*p);
+            }
+            s.points = Strand::interpolating_control_points(&s.points);
+            s.radius = s.radius.map(|r| r * xf.scale);
+            s.ellipticity = ellipticity;
+            s.twist = twist;
+            s.cylinders()
+                .map_err(|(seg, e)| format!("{file}: strand {i}, segment {seg}: {e}"))
+        })
+        .collect();
+    let mut out = Vec::new();
+    for b in built {
+        out.extend(b?);
+    }
+    Ok(out)
+}
+
+impl SceneDescription {
+    /// A scene of one hair file's strands in the built-in `fiber` material, with no camera
+    /// or lights (the renderer frames and lights it). `radius` overrides the file's thickness.
+    pub fn from_hair_file(path: &Path, radius: Option<f64>) -> Result<Self, String> {
+        let name = path.display().to_string();
+        if let Some(r) = radius
+            && !(r.is_finite() && r > 0.0)
+        {
+            return Err(format!("the radius must be positive and finite, got {r}"));
+        }
+        let cylinders =
+            hair_cylinders(path, &name, radius, 1.0, [0.0, 0.0], Similarity::default())?;
+        let materials = Materials::new(&BTreeMap::new()).map_err(|(_, e)| e)?;
+        let fiber = materials.index(&None, FIBER_MATERIAL).map_err(|(_, e)| e)?;
+        Ok(SceneDescription {
+            cylinder_materials: vec![fiber; cylinders.len()],
+            cylinders,
+            materials: materials.list,
+            ..Default::default()
+        })
+    }
+}

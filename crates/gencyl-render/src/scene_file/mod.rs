@@ -1,0 +1,308 @@
+//! The scene file format (TOML): parsing, checking every value, locating every error, and
+//! building what the file describes into a [`SceneDescription`].
+//!
+//! One file per table family: `geometry` (`[[cylinder]]`, `[[strand]]`, `[[hair]]`,
+//! `[[sphere]]`, `[[plane]]`, transforms), `lights` (`[[light]]`, `[environment]`),
+//! `materials` (`[material.NAME]`), `camera` (`[camera]` and `[render]`); `values` holds the
+//! checks they share, and this file the document as a whole. A new table goes in the file of
+//! its family: its serde mirror (`Raw...`, with `Spanned` values), its checks, its builder.
+//!
+//! Imports: the geometry crate, [`crate::accel`] (shapes, the scene's size limit),
+//! [`crate::formats`] (`.hair` files, diagnostics), [`crate::optics`] (the lights, materials
+//! and camera it builds) and [`crate::settings`]; never light transport, which reads what
+//! this module builds.
+//!
+//! # Format
+//!
+//! A scene file is TOML. Geometry:
+//!
+//! - `[[cylinder]]`: one generalized cylinder (interface.md section 2, unchanged);
+//! - `[[strand]]`: a fiber through `points` (or on B-spline `control_points`), made of
+//!   C2-continuous cubic Bezier segments, capped at root and tip only;
+//! - `[[hair]]`: a hair model file (Cem Yuksel's `.hair`), every strand as above;
+//! - `[[sphere]]` and `[[plane]]`: a scalp, a floor.
+//!
+//! Cylinders are numbered in file order, `[[cylinder]]` tables first, then the segments of each
+//! `[[strand]]`, then those of each `[[hair]]` file: that number is the `object` of a hit.
+//! Appearance: `[camera]`, `[[light]]`, `[environment]`, `[material.NAME]` and `[render]`.
+//! The README lists every key; a short scene:
+//!
+//! ```
+//! use gencyl_render::scene_file::SceneDescription;
+//!
+//! let src = r#"
+//! [camera]
+//! position = [0, 1, 4]
+//! look_at = [0, 0.5, 0]
+//! fov = 35
+//!
+//! [material.brown]
+//! type = "hair"
+//! melanin = 1.3
+//!
+//! [[strand]]
+//! points = [[0, 0, 0], [0.1, 0.5, 0], [0, 1, 0.1]]
+//! radius = [0.02, 0.01]
+//! ellipticity = 0.7
+//! twist = [0, 6.28]
+//! material = "brown"
+//!
+//! [[cylinder]]
+//! bezier = [[0.0, 0.0, 0.0], [0.0, 0.3, 0.0], [0.2, 0.6, 0.0], [0.2, 1.0, 0.1]]
+//! major_radius = [0.05, 0.03]    # [A0, A1]
+//! minor_radius = [0.03, 0.02]    # [B0, B1]
+//! rotation = [0.0, 3.14159]
+//!
+//! [[light]]
+//! type = "sphere"
+//! center = [2, 4, 3]
+//! radius = 0.5
+//! radiance = 20
+//! "#;
+//! let scene = SceneDescription::parse(src, "hair.toml").unwrap();
+//! assert_eq!(scene.cylinders.len(), 3, "one cylinder, then two strand segments");
+//!
+//! let err = SceneDescription::parse("[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.0, 0.03]\n", "s.toml")
+//!     .unwrap_err();
+//! assert_eq!(err.to_string(), "s.toml:3:16: major_radius must be positive at both ends, got [0.0, 0.03] (cylinder 0)");
+//! ```
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use gencyl::GeneralizedCylinder;
+use rayon::prelude::*;
+use serde::Deserialize;
+use toml::Spanned;
+
+mod camera;
+mod geometry;
+mod lights;
+mod materials;
+mod values;
+
+pub use geometry::Similarity;
+pub use materials::{FIBER_MATERIAL, SURFACE_MATERIAL};
+
+use crate::accel::{Plane, Scene, Sphere};
+use crate::formats::Diagnostic;
+use crate::optics::material::SceneMaterial;
+use crate::optics::{Camera, Environment, Light};
+use crate::settings::RenderTable;
+use camera::{RawCamera, RawRender, build_camera, build_render};
+use geometry::*;
+use lights::{RawEnvironment, RawLight, build_environment, build_light};
+use materials::{Materials, RawMaterial};
+use values::Problem;
+
+/// Why a scene file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be read.
+    #[error("{path}: cannot read: {error}")]
+    Read {
+        /// The file's name as given.
+        path: String,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// The file is not a valid scene: a syntax error, a wrong key or value, a degenerate
+    /// cylinder, a hair file that cannot be read.
+    #[error("{0}")]
+    Invalid(Box<Diagnostic>),
+}
+
+impl SceneError {
+    /// The diagnostic, for an error located in the file.
+    pub fn diagnostic(&self) -> Option<&Diagnostic> {
+        match self {
+            SceneError::Invalid(d) => Some(d),
+            SceneError::Read { .. } => None,
+        }
+    }
+}
+
+/// The contents of a scene file, validated, with every cylinder built.
+#[derive(Clone, Debug, Default)]
+pub struct SceneDescription {
+    /// The cylinders in order: index = `object` number.
+    pub cylinders: Vec<GeneralizedCylinder>,
+    /// Each cylinder's material, an index into `materials`.
+    pub cylinder_materials: Vec<u32>,
+    /// Spheres with their material index.
+    pub spheres: Vec<(Sphere, u32)>,
+    /// Planes with their material index.
+    pub planes: Vec<(Plane, u32)>,
+    /// Materials: the scene's, then the built-in `fiber` and `surface` unless redefined.
+    pub materials: Vec<SceneMaterial>,
+    /// Light sources.
+    pub lights: Vec<Light>,
+    /// The environment, if the scene has one.
+    pub environment: Option<Environment>,
+    /// The camera, if the scene has one (otherwise the renderer frames the scene).
+    pub camera: Option<Camera>,
+    /// `[render]` settings.
+    pub render: RenderTable,
+}
+
+// The file's shape, as serde reads it. `Spanned` keeps each value's place for the validation
+// errors that come after parsing.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    #[serde(default)]
+    cylinder: Vec<Spanned<RawCylinder>>,
+    #[serde(default)]
+    strand: Vec<Spanned<RawStrand>>,
+    #[serde(default)]
+    hair: Vec<Spanned<RawHair>>,
+    #[serde(default)]
+    sphere: Vec<Spanned<RawSphere>>,
+    #[serde(default)]
+    plane: Vec<Spanned<RawPlane>>,
+    #[serde(default)]
+    light: Vec<Spanned<RawLight>>,
+    environment: Option<Spanned<RawEnvironment>>,
+    #[serde(default)]
+    material: BTreeMap<String, Spanned<RawMaterial>>,
+    camera: Option<Spanned<RawCamera>>,
+    render: Option<Spanned<RawRender>>,
+}
+
+impl SceneDescription {
+    /// Reads and parses the scene file at `path`; hair files are found relative to its folder.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, SceneError> {
+        let path = path.as_ref();
+        let name = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|error| SceneError::Read {
+            path: name.clone(),
+            error,
+        })?;
+        let base = path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
+        Self::parse_bytes_in(&bytes, &name, &base)
+    }
+
+    /// Parses scene file bytes; `name` is the file's name for messages. Bytes that are not
+    /// UTF-8 are reported at the first bad byte. Hair files are found relative to the current
+    /// folder.
+    pub fn parse_bytes(bytes: &[u8], name: &str) -> Result<Self, SceneError> {
+        Self::parse_bytes_in(bytes, name, Path::new(""))
+    }
+
+    fn parse_bytes_in(bytes: &[u8], name: &str, base: &Path) -> Result<Self, SceneError> {
+        match std::str::from_utf8(bytes) {
+            Ok(src) => Self::parse_in(src, name, base),
+            Err(e) => {
+                let good = &bytes[..e.valid_up_to()];
+                // Safe: valid_up_to marks the end of the valid prefix.
+                let src = std::str::from_utf8(good).unwrap_or_default();
+                let at = src.len();
+                Err(invalid(
+                    name,
+                    src,
+                    at..at,
+                    "the file is not valid UTF-8 text".to_string(),
+                ))
+            }
+        }
+    }
+
+    /// Parses scene source text; `name` is the file's name for messages. Hair files are found
+    /// relative to the current folder.
+    pub fn parse(src: &str, name: &str) -> Result<Self, SceneError> {
+        Self::parse_in(src, name, Path::new(""))
+    }
+
+    /// Parses scene source text whose hair files are relative to `base`.
+    pub fn parse_in(src: &str, name: &str, base: &Path) -> Result<Self, SceneError> {
+        let raw: RawScene = toml::from_str(src).map_err(|e| {
+            let span = e.span().unwrap_or(0..0);
+            invalid(name, src, span, e.message().trim().to_string())
+        })?;
+        build(&raw, base).map_err(|(span, msg)| invalid(name, src, span, msg))
+    }
+}
+
+fn invalid(name: &str, src: &str, span: Range<usize>, message: String) -> SceneError {
+    SceneError::Invalid(Box::new(Diagnostic::new(name, src, span, message)))
+}
+
+/// Validates everything and builds the cylinders (in parallel; the first problem in file
+/// order is reported).
+fn build(raw: &RawScene, base: &Path) -> Result<SceneDescription, Problem> {
+    let materials = Materials::new(&raw.material)?;
+    let mut out = SceneDescription::default();
+
+    let built: Vec<Result<GeneralizedCylinder, Problem>> = raw
+        .cylinder
+        .par_iter()
+        .map(|c| build_cylinder(c.get_ref(), c.span()))
+        .collect();
+    for (i, (b, c)) in built.into_iter().zip(&raw.cylinder).enumerate() {
+        let cyl = b.map_err(|(span, msg)| (span, format!("{msg} (cylinder {i})")))?;
+        out.cylinders.push(cyl);
+        out.cylinder_materials
+            .push(materials.index(&c.get_ref().material, FIBER_MATERIAL)?);
+    }
+    let built: Vec<Result<Vec<GeneralizedCylinder>, Problem>> = raw
+        .strand
+        .par_iter()
+        .map(|s| build_strand(s.get_ref(), s.span()))
+        .collect();
+    for (i, (b, s)) in built.into_iter().zip(&raw.strand).enumerate() {
+        let cyls = b.map_err(|(span, msg)| (span, format!("{msg} (strand {i})")))?;
+        let m = materials.index(&s.get_ref().material, FIBER_MATERIAL)?;
+        out.cylinder_materials
+            .extend(std::iter::repeat_n(m, cyls.len()));
+        out.cylinders.extend(cyls);
+    }
+    for h in &raw.hair {
+        let cyls = build_hair(h.get_ref(), base)?;
+        let m = materials.index(&h.get_ref().material, FIBER_MATERIAL)?;
+        out.cylinder_materials
+            .extend(std::iter::repeat_n(m, cyls.len()));
+        out.cylinders.extend(cyls);
+    }
+    if out.cylinders.len() > Scene::MAX_CYLINDERS {
+        return Err((
+            0..0,
+            format!(
+                "{} cylinders: more than the {} a scene holds",
+                out.cylinders.len(),
+                Scene::MAX_CYLINDERS
+            ),
+        ));
+    }
+    for s in &raw.sphere {
+        let r = s.get_ref();
+        out.spheres.push((
+            build_sphere(r)?,
+            materials.index(&r.material, SURFACE_MATERIAL)?,
+        ));
+    }
+    for p in &raw.plane {
+        let r = p.get_ref();
+        out.planes.push((
+            build_plane(r)?,
+            materials.index(&r.material, SURFACE_MATERIAL)?,
+        ));
+    }
+    for l in &raw.light {
+        out.lights.push(build_light(l.get_ref(), l.span())?);
+    }
+    if let Some(e) = &raw.environment {
+        out.environment = Some(build_environment(e.get_ref(), e.span())?);
+    }
+    if let Some(c) = &raw.camera {
+        out.camera = Some(build_camera(c.get_ref(), c.span())?);
+    }
+    if let Some(r) = &raw.render {
+        out.render = build_render(r.get_ref())?;
+    }
+    out.materials = materials.list;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests;

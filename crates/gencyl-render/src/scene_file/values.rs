@@ -1,0 +1,177 @@
+//! Values as the scene file writes them, and their checks: fixed-length arrays, colours,
+//! finite vectors and numbers in range, keys that a type takes or requires. Every check
+//! returns a [`Problem`]: where in the source, and what is wrong.
+
+use std::ops::Range;
+
+use glam::DVec3;
+use serde::Deserialize;
+use toml::Spanned;
+
+/// A TOML array of exactly `N` values. (serde's `[T; N]` lets the toml deserializer drop
+/// extra elements silently.)
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Array<T, const N: usize>(pub(super) [T; N]);
+
+impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Array<T, N> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V<T, const N: usize>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de>, const N: usize> serde::de::Visitor<'de> for V<T, N> {
+            type Value = Array<T, N>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "an array of {N} elements")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Self::Value, A::Error> {
+                let mut v = Vec::with_capacity(N);
+                while let Some(x) = seq.next_element()? {
+                    v.push(x);
+                }
+                let n = v.len();
+                v.try_into()
+                    .map(Array)
+                    .map_err(|_| serde::de::Error::invalid_length(n, &self))
+            }
+        }
+        d.deserialize_seq(V(std::marker::PhantomData))
+    }
+}
+
+/// An RGB colour: `[r, g, b]`, or one number for grey.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Colour(pub(super) DVec3);
+
+impl<'de> Deserialize<'de> for Colour {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Colour;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "a number or an array [r, g, b]")
+            }
+            fn visit_f64<E>(self, x: f64) -> Result<Colour, E> {
+                Ok(Colour(DVec3::splat(x)))
+            }
+            fn visit_i64<E>(self, x: i64) -> Result<Colour, E> {
+                Ok(Colour(DVec3::splat(x as f64)))
+            }
+            fn visit_u64<E>(self, x: u64) -> Result<Colour, E> {
+                Ok(Colour(DVec3::splat(x as f64)))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, seq: A) -> Result<Colour, A::Error> {
+                let a: Array<f64, 3> =
+                    Deserialize::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))?;
+                Ok(Colour(DVec3::from_array(a.0)))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// The value of a spanned array.
+pub(super) fn val<T: Copy, const N: usize>(s: &Spanned<Array<T, N>>) -> [T; N] {
+    s.get_ref().0
+}
+
+/// A validation failure: where (bytes of the source) and what.
+pub(super) type Problem = (Range<usize>, String);
+
+/// A finite 3-vector.
+pub(super) fn vec3(s: &Spanned<Array<f64, 3>>, what: &str) -> Result<DVec3, Problem> {
+    let v = DVec3::from_array(val(s));
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err((s.span(), format!("{what} must be finite, got {:?}", val(s))))
+    }
+}
+
+/// A finite non-zero 3-vector, normalized.
+pub(super) fn direction(s: &Spanned<Array<f64, 3>>, what: &str) -> Result<DVec3, Problem> {
+    let v = vec3(s, what)?;
+    if v.length_squared() > 0.0 {
+        Ok(v.normalize())
+    } else {
+        Err((s.span(), format!("{what} must not be zero")))
+    }
+}
+
+/// A finite number in `[lo, hi]` (`open`: excluding `lo`).
+pub(super) fn number(
+    s: &Spanned<f64>,
+    what: &str,
+    lo: f64,
+    hi: f64,
+    open: bool,
+) -> Result<f64, Problem> {
+    let x = *s.get_ref();
+    let ok = x.is_finite() && x <= hi && if open { x > lo } else { x >= lo };
+    if ok {
+        return Ok(x);
+    }
+    let range = match (open, hi.is_finite()) {
+        (true, false) if lo == 0.0 => "positive and finite".to_string(),
+        (false, false) if lo == 0.0 => "non-negative and finite".to_string(),
+        (true, _) => format!("in ({lo}, {hi}]"),
+        (false, _) => format!("in [{lo}, {hi}]"),
+    };
+    Err((s.span(), format!("{what} must be {range}, got {x}")))
+}
+
+/// A finite non-negative colour.
+pub(super) fn colour(s: &Spanned<Colour>, what: &str) -> Result<DVec3, Problem> {
+    let c = s.get_ref().0;
+    if c.is_finite() && c.min_element() >= 0.0 {
+        Ok(c)
+    } else {
+        Err((
+            s.span(),
+            format!(
+                "{what} must be finite and non-negative, got {:?}",
+                c.to_array()
+            ),
+        ))
+    }
+}
+
+/// `key` must be absent for `kind` (a light or material type).
+pub(super) fn not_for<T>(key: &Option<Spanned<T>>, name: &str, kind: &str) -> Result<(), Problem> {
+    match key {
+        Some(k) => Err((k.span(), format!("`{name}` does not apply to {kind}"))),
+        None => Ok(()),
+    }
+}
+
+/// A required key.
+pub(super) fn required<'a, T>(
+    key: &'a Option<Spanned<T>>,
+    name: &str,
+    kind: &str,
+    table: &Range<usize>,
+) -> Result<&'a Spanned<T>, Problem> {
+    key.as_ref()
+        .ok_or_else(|| (table.clone(), format!("{kind} needs `{name}`")))
+}
+
+/// Where a key's value is, if it is there.
+pub(super) fn span_of<T>(k: &Option<Spanned<T>>) -> Option<Range<usize>> {
+    k.as_ref().map(Spanned::span)
+}
+
+/// Every key present must be one `kind` takes: `keys` pairs names with where their values are.
+pub(super) fn only_keys(
+    keys: &[(&str, Option<Range<usize>>)],
+    allowed: &[&str],
+    kind: &str,
+) -> Result<(), Problem> {
+    for (name, span) in keys {
+        if let Some(span) = span
+            && !allowed.contains(name)
+        {
+            return Err((span.clone(), format!("`{name}` does not apply to {kind}")));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,8 @@
+//! Scenes made by the program rather than read from a file: the [`builtin`] scene (and the
+//! camera and lights supplied when a scene has none) and the seeded generators of [`synth`]
+//! (random fibers and rays, synthetic hair models) for tests and benchmarks.
+//!
+//! Imports: [`crate::scene_file`], [`crate::optics`], [`crate::accel`], [`crate::sampling`].
+
+pub mod builtin;
+pub mod synth;
