@@ -194,7 +194,7 @@ impl Film {
         Ok(())
     }
 
-    /// Writes by extension: `.png` → 8-bit sRGB of R, G, B (values clamped to [0,1], the standard
+    /// Writes by extension: `.png` → 8-bit sRGB of R, G, B (values clamped to `[0, 1]`, the standard
     /// sRGB curve; a crop film writes just its window); `.exr` → linear f32, every channel,
     /// ZIP-compressed (lossless), with data window = the crop window and display window = the
     /// full frame. Atomic: written to a hidden temp file in the same directory, then renamed; on
