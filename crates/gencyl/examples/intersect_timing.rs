@@ -100,13 +100,8 @@ fn main() {
         }
         let cyl = spec.build().expect("valid fiber");
         let rays = rays(&cyl, r, n, 7);
-        for method in [
-            Method::Auto,
-            Method::Polynomial,
-            Method::Radial,
-            Method::General,
-        ] {
-            if method == Method::Polynomial && name != "round" {
+        for method in [Method::Auto, Method::Round, Method::Radial, Method::General] {
+            if method == Method::Round && name != "round" {
                 continue;
             }
             if only_method

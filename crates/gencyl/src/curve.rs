@@ -48,10 +48,60 @@ impl CubicBezier {
         ]
     }
 
+    /// `[1 / max |a'|, 1 / max |a''|]` over the hodographs' control points (1 for a vanishing
+    /// one): the frame does not change when `a'` and `a''` are scaled by positive constants, and
+    /// scaled to unit size their products neither underflow nor overflow at any scale of the
+    /// curve (a fiber `1e-150` across squares its derivatives to `1e-300` and their cross
+    /// product's square to `1e-600`).
+    pub fn derivative_scales(&self) -> [f64; 2] {
+        let inv = |m: f64| {
+            if m > 0.0 && m.is_finite() {
+                1.0 / m
+            } else {
+                1.0
+            }
+        };
+        let m1 = self
+            .hodograph()
+            .iter()
+            .fold(0.0f64, |m, h| m.max(h.abs().max_element()));
+        let m2 = self
+            .second_hodograph()
+            .iter()
+            .fold(0.0f64, |m, h| m.max(h.abs().max_element()));
+        [inv(m1), inv(m2)]
+    }
+
     /// The constant `a'''`.
     pub fn third_derivative(&self) -> DVec3 {
         let p = &self.points;
         6.0 * (p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0])
+    }
+
+    /// The blossom `B(u1, u2, u3)` (de Casteljau with a different parameter at each level):
+    /// symmetric, affine in each argument, `B(u, u, u) = a(u)`.
+    pub fn blossom(&self, u1: f64, u2: f64, u3: f64) -> DVec3 {
+        let p = &self.points;
+        let lerp = |a: DVec3, b: DVec3, t: f64| a + t * (b - a);
+        let q = [
+            lerp(p[0], p[1], u1),
+            lerp(p[1], p[2], u1),
+            lerp(p[2], p[3], u1),
+        ];
+        let r = [lerp(q[0], q[1], u2), lerp(q[1], q[2], u2)];
+        lerp(r[0], r[1], u3)
+    }
+
+    /// The same curve on `[u0, u1]` reparametrised to `[0, 1]` (any `u0 != u1`, also outside
+    /// `[0, 1]`): control points `B(u0, u0, u0)`, `B(u0, u0, u1)`, `B(u0, u1, u1)`,
+    /// `B(u1, u1, u1)`.
+    pub fn segment(&self, u0: f64, u1: f64) -> CubicBezier {
+        CubicBezier::new([
+            self.blossom(u0, u0, u0),
+            self.blossom(u0, u0, u1),
+            self.blossom(u0, u1, u1),
+            self.blossom(u1, u1, u1),
+        ])
     }
 
     /// `a(u)`.

@@ -326,16 +326,6 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         }
     }
 
-    /// `phi(u)` and `w(u)` (seed 2.1-2.2 with errata 1) for the ray `o + w d` in local
-    /// coordinates: the ray meets the normal plane at `u` where
-    /// `w = -a'(u).(o - a(u)) / (a'(u).d)`; the point's plane coordinates are
-    /// `rho = (n.(o + w d - a), b.(o + w d - a))`, and `phi = s^-1(rho, u)`.
-    #[inline]
-    pub(crate) fn phi_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V2<T>, T) {
-        let (qphi, q) = self.scaled_phi_r(o, d, u);
-        (V2::new(qphi.x / q, qphi.y / q), self.plane_w_r(o, d, u))
-    }
-
     /// `w(u) = a'(u).(a(u) - o) / (a'(u).d)`.
     #[inline]
     pub(crate) fn plane_w_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> T {
@@ -454,6 +444,28 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     .sweep
                     .inverse(u, V2::new(d1.norm2().sqrt() * d2.dot(v), c.dot(v)));
                 p.norm2() / c.norm2() - rq2
+            }
+        }
+    }
+
+    /// The frame `(t, n, b)` at `u` from the axis' jet `a'(u)`, `a''(u)` ([`Self::axis_jet_r`]):
+    /// `t = a'/|a'|`, `b = C/|C|` with `C = a' x a''`, `n = b x t`, through
+    /// [`Self::reduced_second_r`] at strand ends (the frame does not change when `a''` is scaled)
+    /// and [`frame_r`] where the Frenet frame at `u`'s representative value is degenerate.
+    #[inline(always)]
+    pub(crate) fn frame_from_jet_r<T: Real>(&self, u: T, d1: V3<T>, d2: V3<T>) -> [V3<T>; 3] {
+        match &self.framing {
+            Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
+            Framing::Frenet => {
+                if frenet_shift(&self.axis, u.value()) != 0.0 {
+                    return frame_r(&self.axis, &self.framing, u);
+                }
+                let [k1, k2] = self.axis.derivative_scales();
+                let d1 = d1.scaled(T::cst(k1));
+                let c = d1.cross(self.reduced_second_r(u, d2).scaled(T::cst(k2)));
+                let t = d1.divided(d1.norm2().sqrt());
+                let b = c.divided(c.norm2().sqrt());
+                [t, b.cross(t), b]
             }
         }
     }

@@ -185,7 +185,11 @@ pub fn frame_r<T: Real>(axis: &CubicBezier, framing: &Framing, u: T) -> [V3<T>; 
         Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
         Framing::Frenet => {
             let u = u + T::cst(frenet_shift(axis, u.value()));
-            let (d1, d2) = (axis.d1_r(u), axis.d2_r(u));
+            let [k1, k2] = axis.derivative_scales();
+            let (d1, d2) = (
+                axis.d1_r(u).scaled(T::cst(k1)),
+                axis.d2_r(u).scaled(T::cst(k2)),
+            );
             let bt = d1.cross(d2);
             let t = d1.divided(d1.norm2().sqrt());
             let b = bt.divided(bt.norm2().sqrt());
@@ -226,18 +230,23 @@ impl FrameAt {
             },
             Framing::Frenet => {
                 // Curvature and torsion where the frame was taken (see `frenet_shift`).
+                // With a' and a'' scaled by k1 and k2 (see `derivative_scales`) so no product
+                // underflows: kappa = |a' x a''| / |a'|^3 = |c| k1^2 / (k2 |a'_s|^3) and
+                // tau = (a' x a'').a''' / |a' x a''|^2 = k1 k2 (c.a''') / |c|^2, c = a'_s x a''_s.
                 let us = u + frenet_shift(axis, u);
-                let c = axis.d1(us).cross(axis.d2(us));
+                let [k1, k2] = axis.derivative_scales();
+                let d1 = axis.d1(us) * k1;
+                let c = d1.cross(axis.d2(us) * k2);
                 let c2 = c.length_squared();
                 let torsion = if c2 > 0.0 {
-                    c.dot(axis.third_derivative()) / c2
+                    k1 * k2 * c.dot(axis.third_derivative()) / c2
                 } else {
                     0.0
                 };
                 FrameAt {
                     frame,
                     speed,
-                    curvature: c2.sqrt() / axis.d1(us).length().powi(3),
+                    curvature: c2.sqrt() * k1 * k1 / (k2 * d1.length().powi(3)),
                     torsion,
                 }
             }

@@ -19,6 +19,7 @@
 //! assert!((hit.normal - DVec3::Z).length() < 1e-12);
 //! ```
 
+pub mod bernstein;
 pub mod curve;
 pub mod cylinder;
 pub mod frame;

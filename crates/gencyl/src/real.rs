@@ -29,6 +29,11 @@ pub trait Real:
     fn value(self) -> f64;
     /// Square root.
     fn sqrt(self) -> Self;
+    /// `sqrt(max(x, 0))`: the square root of a quantity that is non-negative wherever it is
+    /// used, but whose enclosure (or rounded value) may reach below 0 near the boundary of
+    /// that domain. Enclosures clamp at 0 (`[0, sqrt(hi)]` where they straddle it), so they
+    /// hold the root over the part of the range inside the domain.
+    fn sqrt_pos(self) -> Self;
     /// Sine.
     fn sin(self) -> Self;
     /// Cosine.
@@ -74,6 +79,10 @@ impl Real for f64 {
     #[inline(always)]
     fn sqrt(self) -> Self {
         f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn sqrt_pos(self) -> Self {
+        self.max(0.0).sqrt()
     }
     #[inline(always)]
     fn sin(self) -> Self {
@@ -198,6 +207,14 @@ impl<T: Real> Real for Dual<T> {
     #[inline(always)]
     fn sqrt(self) -> Self {
         let s = self.v.sqrt();
+        Dual {
+            v: s,
+            d: self.d / (s + s),
+        }
+    }
+    #[inline(always)]
+    fn sqrt_pos(self) -> Self {
+        let s = self.v.sqrt_pos();
         Dual {
             v: s,
             d: self.d / (s + s),
@@ -432,6 +449,10 @@ impl Real for Interval {
     fn sqrt(self) -> Self {
         // Rounding can push a sum of squares a hair below zero; the exact value is not.
         Interval::new(self.lo.max(0.0).sqrt(), self.hi.max(0.0).sqrt())
+    }
+    #[inline(always)]
+    fn sqrt_pos(self) -> Self {
+        self.sqrt()
     }
     #[inline(always)]
     fn sin(self) -> Self {
@@ -732,6 +753,26 @@ impl Real for Taylor {
         // sqrt' = 1/(2 sqrt), |sqrt''| = 1/(4 x^1.5) <= 1/(4 lo sqrt(lo)).
         let f1 = 0.5 / r;
         self.compose(r, f1, 0.25 / (lo * lo.sqrt()), U4 * r, U4 * f1, range)
+    }
+    #[inline(always)]
+    fn sqrt_pos(self) -> Self {
+        if down(self.c - self.spread()) > 0.0 {
+            return self.sqrt();
+        }
+        let hi = up(self.c + self.spread()).max(0.0);
+        if !hi.is_finite() {
+            return Taylor {
+                h: self.h,
+                ..Self::ENTIRE
+            };
+        }
+        Taylor {
+            h: self.h,
+            ..Taylor::lift(Interval {
+                lo: 0.0,
+                hi: up(hi.sqrt()),
+            })
+        }
     }
     #[inline(always)]
     fn sin(self) -> Self {

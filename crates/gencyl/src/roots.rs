@@ -169,6 +169,206 @@ pub fn isolate_roots<F: Function1D>(
     complete
 }
 
+/// A smooth map of the plane with enclosures over boxes, for [`isolate_roots_2d`].
+pub trait Function2D {
+    /// `F(x)` and its Jacobian `J[i][j] = dF_i/dx_j` at a point.
+    fn jet(&self, x: [f64; 2]) -> ([f64; 2], [[f64; 2]; 2]);
+    /// Enclosures over the box `[lo, hi]` of `F` and of `J`, and an enclosure of `F` at the box's
+    /// centre (its value with the rounding bounded).
+    fn enclose(&self, lo: [f64; 2], hi: [f64; 2]) -> Enclosure2;
+}
+
+/// What [`Function2D::enclose`] returns.
+#[derive(Clone, Copy, Debug)]
+pub struct Enclosure2 {
+    /// `F` over the box.
+    pub f: [Interval; 2],
+    /// `J` over the box.
+    pub j: [[Interval; 2]; 2],
+    /// `F` at the centre.
+    pub f_center: [Interval; 2],
+    /// The variable to halve first, if the function knows its enclosures are unbounded because
+    /// of it (a parameter range that reaches a singular point).
+    pub split: Option<usize>,
+}
+
+/// Settings of [`isolate_roots_2d`].
+#[derive(Clone, Copy, Debug)]
+pub struct Isolate2D {
+    /// Boxes narrower than this in both variables are not split: a root there (at a tangency,
+    /// where the Jacobian is singular) is taken from Newton's method when it converges inside
+    /// with a residual no larger than the Jacobian moves `F` across such a box.
+    pub min_width: [f64; 2],
+    /// Safety cap on boxes examined per call.
+    pub max_boxes: usize,
+}
+
+/// An interval 2x2 matrix times an interval vector.
+fn mat_vec(m: [[Interval; 2]; 2], x: [Interval; 2]) -> [Interval; 2] {
+    [
+        m[0][0] * x[0] + m[0][1] * x[1],
+        m[1][0] * x[0] + m[1][1] * x[1],
+    ]
+}
+
+/// Newton's method in two variables from `x`, kept inside `[lo, hi]`: the converged point, or
+/// `None` if it leaves the box, stalls or the Jacobian is singular.
+fn newton2<F: Function2D>(f: &F, mut x: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> Option<[f64; 2]> {
+    for _ in 0..60 {
+        let (g, j) = f.jet(x);
+        let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+        if !(det.is_finite() && det != 0.0) {
+            return None;
+        }
+        let step = [
+            (g[0] * j[1][1] - g[1] * j[0][1]) / det,
+            (g[1] * j[0][0] - g[0] * j[1][0]) / det,
+        ];
+        let next = [x[0] - step[0], x[1] - step[1]];
+        if !(next[0] >= lo[0] && next[0] <= hi[0] && next[1] >= lo[1] && next[1] <= hi[1]) {
+            return None;
+        }
+        let small = |k: usize| step[k].abs() <= 4.0 * f64::EPSILON * next[k].abs().max(1e-300);
+        x = next;
+        if small(0) && small(1) {
+            return Some(x);
+        }
+    }
+    Some(x)
+}
+
+/// Every root of `F` in the box `[lo, hi]`, by interval Newton in Krawczyk's form: with `c` the
+/// box's centre and `Y` the inverse of the Jacobian there,
+/// `K(X) = c - Y F(c) + (I - Y J(X)) (X - c)` holds every root in `X` (`J(X)` the Jacobian's
+/// enclosure over the box). A box whose `F` enclosure excludes 0, or whose `K` misses it, holds
+/// none; one whose `K` lies inside it holds exactly one, found by Newton's method from `c`;
+/// otherwise the box is cut down to `K` and, unless that shrank it well, halved across its
+/// wider side (relative to `min_width`). Roots in no particular order.
+///
+/// Returns whether the box budget sufficed.
+pub fn isolate_roots_2d<F: Function2D>(
+    f: &F,
+    lo: [f64; 2],
+    hi: [f64; 2],
+    opts: &Isolate2D,
+    out: &mut ArrayVec<[f64; 2], MAX_ROOTS>,
+) -> bool {
+    let mut stack: ArrayVec<([f64; 2], [f64; 2]), 128> = ArrayVec::new();
+    stack.push((lo, hi));
+    let mut boxes = 0;
+    let push = |out: &mut ArrayVec<[f64; 2], MAX_ROOTS>, x: [f64; 2]| {
+        let near = |y: &[f64; 2]| {
+            (0..2).all(|k| (x[k] - y[k]).abs() <= 2.0 * opts.min_width[k].max(1e-15 * x[k].abs()))
+        };
+        if !out.is_full() && !out.iter().any(near) {
+            out.push(x);
+        }
+    };
+    while let Some((a, b)) = stack.pop() {
+        boxes += 1;
+        if boxes > opts.max_boxes {
+            return false;
+        }
+
+        let xb = [Interval::exact(a[0], b[0]), Interval::exact(a[1], b[1])];
+        let enc = f.enclose(a, b);
+        if enc.f[0].excludes_zero() || enc.f[1].excludes_zero() {
+            continue;
+        }
+        let c = [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
+        let jx = enc.j;
+        let m = jx.map(|row| row.map(|e| e.value()));
+        let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+        let narrow = (0..2).all(|k| b[k] - a[k] <= opts.min_width[k]);
+        if narrow {
+            // At the resolution of the enclosures: Newton's method from the centre, allowed a
+            // few box widths out (the root may sit on the edge), decides.
+            let w = opts.min_width;
+            let (lo, hi) = (
+                [a[0] - 4.0 * w[0], a[1] - 4.0 * w[1]],
+                [b[0] + 4.0 * w[0], b[1] + 4.0 * w[1]],
+            );
+            if let Some(x) = newton2(f, c, lo, hi) {
+                let (g, j) = f.jet(x);
+                if (0..2).all(|i| g[i].abs() <= 4.0 * (j[i][0].abs() * w[0] + j[i][1].abs() * w[1]))
+                {
+                    push(out, x);
+                }
+            }
+            continue;
+        }
+        let mut next = (a, b);
+        if det.is_finite() && det != 0.0 {
+            let y = [
+                [m[1][1] / det, -m[0][1] / det],
+                [-m[1][0] / det, m[0][0] / det],
+            ];
+            let fc = enc.f_center;
+            let yi = y.map(|row| row.map(Interval::cst));
+            let yf = mat_vec(yi, fc);
+            // I - Y J(X).
+            let one = |i: usize, j: usize| Interval::cst(if i == j { 1.0 } else { 0.0 });
+            let r: [[Interval; 2]; 2] = std::array::from_fn(|i| {
+                std::array::from_fn(|j| one(i, j) - (yi[i][0] * jx[0][j] + yi[i][1] * jx[1][j]))
+            });
+            let dx = [xb[0] - Interval::cst(c[0]), xb[1] - Interval::cst(c[1])];
+            let rd = mat_vec(r, dx);
+            let k: [Interval; 2] = std::array::from_fn(|i| Interval::cst(c[i]) - yf[i] + rd[i]);
+            if (0..2).any(|i| k[i].hi < a[i] || k[i].lo > b[i]) {
+                continue;
+            }
+            if (0..2).all(|i| k[i].lo > a[i] && k[i].hi < b[i]) {
+                if let Some(x) = newton2(f, c, a, b) {
+                    push(out, x);
+                }
+                continue;
+            }
+            let (ka, kb) = (
+                [k[0].lo.max(a[0]), k[1].lo.max(a[1])],
+                [k[0].hi.min(b[0]), k[1].hi.min(b[1])],
+            );
+            let shrunk = (0..2).all(|i| kb[i] - ka[i] <= 0.5 * (b[i] - a[i]));
+            if shrunk && !stack.is_full() {
+                stack.push((ka, kb));
+                continue;
+            }
+            next = (ka, kb);
+        }
+        let (a, b) = next;
+        if stack.len() + 2 > stack.capacity() {
+            return false;
+        }
+        // Halve across the side along which F varies more over the box (the larger "smear"
+        // |J_ik| w_k, Kearfott's rule), unless a side is already at its resolution.
+        let mag = |x: Interval| x.lo.abs().max(x.hi.abs());
+        let smear = |k: usize| {
+            let w = b[k] - a[k];
+            if w <= opts.min_width[k] {
+                return -1.0;
+            }
+            mag(jx[0][k]).max(mag(jx[1][k])) * w
+        };
+        let (s0, s1) = (smear(0), smear(1));
+        let k = match enc.split {
+            Some(k) if b[k] - a[k] > opts.min_width[k] => k,
+            _ if s0 > s1 => 0,
+            _ if s0 == s1
+                && (b[0] - a[0]) / opts.min_width[0] >= (b[1] - a[1]) / opts.min_width[1] =>
+            {
+                0
+            }
+            _ => 1,
+        };
+        let mid = 0.5 * (a[k] + b[k]);
+        let (mut b0, mut a1) = (b, a);
+        b0[k] = mid;
+        a1[k] = mid;
+        stack.push((a1, b));
+        stack.push((a, b0));
+    }
+    true
+}
+
 /// The isolator [`isolate_roots`] replaced, with the same contract: interval arithmetic
 /// (second-order centred forms through nested duals of [`Interval`]s) and halving only. About
 /// ten times slower; kept as the reference the faster one is tested against.

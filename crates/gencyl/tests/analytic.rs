@@ -512,7 +512,7 @@ fn methods_agree_on_curved_fibers() {
             let origin = target + rng.vec(-1.0, 1.0).normalize() * rng.range(0.5, 4.0);
             let ray = Ray::new(origin, target - origin);
             let methods: &[Method] = if round {
-                &[Method::Polynomial, Method::Radial, Method::General]
+                &[Method::Round, Method::Radial, Method::General]
             } else {
                 &[Method::Radial, Method::General]
             };

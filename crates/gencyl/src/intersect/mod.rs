@@ -2,42 +2,50 @@
 //!
 //! For each `u` the ray meets the normal plane at `w(u) = -a'(u).(o - a(u)) / q(u)` with
 //! `q(u) = a'(u).d`, a quadratic. The side surface is hit where `phi(u) = s^-1(rho(u), u)` lies on
-//! the section `cs(v)`:
+//! the section `cs(v)`. A frame-free prefilter ([`prefilter`]) first keeps the `u` ranges where
+//! the ray passes within reach of the axis. Then:
 //!
-//! 1. Where `q` vanishes on all of `[0, 1]` (the axis lies in a plane perpendicular to the ray),
-//!    the ray lies in the normal plane at each root of `N(u) = a'(u).(a(u) - o)` and nowhere
-//!    else meets one: intersect the ray with the contour there, in 2D ([`Self::in_plane_roots`]).
-//! 2. Otherwise, at a root of `q` (a pole of `rho`) where `N` vanishes too, the ray lies in that
-//!    normal plane: intersect with the contour there as well.
-//! 3. Solve `phi(u) on cs` by one of the [`Method`]s. They work with `q phi` rather than `phi`
-//!    (see [`Radial`]), which is finite through the poles, so no splitting at poles is needed.
-//! 4. Caps: the ray against the planes at `u = 0` and `u = 1`, inside the section.
+//! - Unit-circle sections (round and elliptical fibers, [`Method::Round`], [`Method::Radial`]):
+//!   the zeros of two branch functions `H±(u)`, the normal-plane condition at the ray's two
+//!   crossings of the section's ellipsoid at `u` ([`branches`]; for round fibers a sphere, and
+//!   polynomials in ray space, [`round`]). They stay simple zeros at every angle, nearly
+//!   perpendicular rays included, where `w(u)` is too steep for any root finder in `u` alone.
+//! - Any section ([`Method::General`]): on ranges where the ray is at least [`OBLIQUE`] off
+//!   perpendicular to the axis, seed 2.3: intersect the curve `phi` with the section by
+//!   subdivision ([`curve_curve`]), working with `q phi` (see [`Radial`]), finite through the
+//!   poles of `phi`; elsewhere the ray's crossings of the section's prism in the normal-plane
+//!   condition, a regular system in `(u, v)` ([`prism`]).
+//! - Caps: the ray against the planes at `u = 0` and `u = 1`, inside the section.
 
+mod branches;
 mod curve_curve;
-mod polynomial;
 mod prefilter;
+mod prism;
+mod round;
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
+use crate::bernstein::Bernstein;
 use crate::cylinder::{GeneralizedCylinder, Hit, Part, Ray, v2};
+use crate::frame::{Framing, frenet_switches};
 use crate::real::{Real, V2};
-use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots, quadratic_roots};
+use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
 /// How the side surface's roots are found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Method {
-    /// The fastest method that applies: [`Method::Polynomial`] for a circular section under a
+    /// The fastest method that applies: [`Method::Round`] for a circular section under a
     /// uniform-scale rule, [`Method::Radial`] for the unit circle, [`Method::General`] otherwise.
     #[default]
     Auto,
-    /// Circular fibers: with `e = o - a(u)` and `m = a'.e`, the hit condition
-    /// `|o + w d - a|^2 = r(u)^2` times `q^2` is the degree-10 polynomial
-    /// `F(u) = |q e - m d|^2 - r(u)^2 q^2`; the frame drops out.
-    Polynomial,
-    /// The unit circle: `|phi(u)|^2 - 1 = 0`, a 1D root problem solved by interval subdivision.
+    /// Round fibers (a circle of radius `r(u)`): the branch functions of the ray's crossings of
+    /// the sphere of radius `r(u)` about `a(u)`, frame-free.
+    Round,
+    /// The unit circle under any rule (elliptical, twisted fibers): the branch functions of the
+    /// ray's crossings of the section's ellipsoid in the frame.
     Radial,
     /// Seed 2.3: subdivide pairs of pieces of `phi` and `cs` whose boxes overlap until both are
     /// linear, intersect the chords, polish by Newton's method on `phi(u) = cs(v)`. The pieces
@@ -50,6 +58,11 @@ pub enum Method {
 /// Roots are searched on `[-U_MARGIN, 1 + U_MARGIN]` and clamped to `[0, 1]`, so a ray through
 /// the joint of two strand segments is not lost between them to rounding.
 pub(crate) const U_MARGIN: f64 = 1e-11;
+
+/// How far off perpendicular to the axis (as `|a'.d| / (|a'| |d|)`) a ray must be on a range
+/// for [`Method::Radial`] to isolate `g(u)` there instead of its branch functions. The one-variable
+/// isolation has been seen to lose hits below `1e-4`; this keeps a factor 100 from that.
+const OBLIQUE: f64 = 1e-2;
 
 /// A prefilter range `[a, b]` of `[0, 1]` grown to the search margin at the ends of `[lo, hi]`.
 fn widen(a: f64, b: f64, lo: f64, hi: f64) -> (f64, f64) {
@@ -65,19 +78,6 @@ pub(crate) struct SideRoot {
 }
 
 pub(crate) type SideRoots = ArrayVec<SideRoot, 64>;
-
-/// `N(u) = a'(u).(a(u) - o)`: zero where the ray's origin projects onto the normal plane at `u`.
-struct PlaneFoot<'a, C, S> {
-    cyl: &'a GeneralizedCylinder<C, S>,
-    o: DVec3,
-}
-
-impl<C: CrossSection, S: SweepRule> Function1D for PlaneFoot<'_, C, S> {
-    fn eval<T: Real>(&self, u: T) -> T {
-        let e = self.cyl.axis.point_r(u) - crate::real::V3::cst(self.o);
-        self.cyl.axis.d1_r(u).dot(e)
-    }
-}
 
 /// `g(u) = q^2 (|phi(u)|^2 - R^2) = |q phi|^2 - R^2 q^2`: negative exactly where the ray's
 /// point in the normal plane at `u` maps inside the disc of radius `R` in section coordinates.
@@ -166,7 +166,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     }
 
     /// [`Self::intersect_all`] with a chosen method for the side surface; a method that does not
-    /// apply to this cylinder (say `Polynomial` for an ellipse) is replaced by `General`.
+    /// apply to this cylinder (say `Round` for an ellipse) is replaced by `General`.
     pub fn intersect_all_with(
         &self,
         ray: &Ray,
@@ -236,123 +236,109 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let circle = self.section.is_unit_circle();
         let uniform = self.sweep.uniform_scale().is_some();
         match method {
-            Method::Auto if circle && uniform => Method::Polynomial,
+            Method::Auto if circle && uniform => Method::Round,
             Method::Auto if circle => Method::Radial,
-            Method::Polynomial if circle && uniform => Method::Polynomial,
+            Method::Round if circle && uniform => Method::Round,
             Method::Radial if circle => Method::Radial,
             _ => Method::General,
         }
     }
 
-    /// Every side root for the local ray `o + w d` (steps 1-3 of the module docs).
-    pub(crate) fn side_roots(&self, o: DVec3, d: DVec3, method: Method, out: &mut SideRoots) {
+    /// Whether the ray is at least [`OBLIQUE`] off perpendicular to the axis on `[a, b]`:
+    /// `|a'(u).d| >= OBLIQUE max|a'| |d|` there, from the Bernstein coefficients of the quadratic
+    /// `a'.d` restricted to the range (which bound it). Then `w(u) = -m/q` has slope at most
+    /// `|a'| / (OBLIQUE |d|)` and the entry and exit lie at least `OBLIQUE` chord / `|a'|` apart
+    /// in `u`.
+    fn oblique(&self, d: DVec3, a: f64, b: f64) -> bool {
         let hod = self.axis.hodograph();
-        let qb = hod.map(|h| h.dot(d));
-        let scale = hod.iter().fold(0.0f64, |m, h| m.max(h.length())) * d.length();
+        let q = Bernstein(hod.map(|h| h.dot(d))).restrict(a, b);
+        let (lo, hi) = q.range();
+        let floor = OBLIQUE * hod.iter().fold(0.0f64, |m, h| m.max(h.length())) * d.length();
+        lo >= floor || hi <= -floor
+    }
+
+    /// Every side root for the local ray `o + w d` (see the module docs).
+    pub(crate) fn side_roots(&self, o: DVec3, d: DVec3, method: Method, out: &mut SideRoots) {
         let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
-        // Step 1: q(u) is a Bernstein quadratic; if all its coefficients vanish, so does q.
-        if qb.iter().all(|x| x.abs() <= 1e-13 * scale) {
-            let mut feet = ArrayVec::new();
-            let size = self.bounds().max - self.bounds().min;
-            let opts = IsolateOptions {
-                tangent_tolerance: 1e-24 * scale * size.length_squared(),
-                ..Default::default()
-            };
-            isolate_roots(&PlaneFoot { cyl: self, o }, lo, hi, &opts, &mut feet);
-            for u in feet {
-                self.in_plane_roots(o, d, u, out);
+        if method == Method::Round {
+            for (a, b) in prefilter::candidate_ranges(self, o, d) {
+                round::roots(self, o, d, widen(a, b, lo, hi), out);
             }
             return;
         }
-        // Step 2: the poles, q(u) = qb0 (1-u)^2 + 2 qb1 u (1-u) + qb2 u^2.
-        let poles: ArrayVec<f64, 2> =
-            quadratic_roots(qb[0] - 2.0 * qb[1] + qb[2], 2.0 * (qb[1] - qb[0]), qb[0])
-                .into_iter()
-                .filter(|&u| u > lo && u < hi)
-                .collect();
-        let size = (self.bounds().max - self.bounds().min).length();
-        for &up in &poles {
-            let n = PlaneFoot { cyl: self, o }.eval(up);
-            if n.abs() <= 1e-12 * self.axis.d1(up).length() * size {
-                self.in_plane_roots(o, d, up, out);
-            }
-        }
-        // Step 3.
-        match method {
-            Method::Polynomial => polynomial::roots(self, o, d, lo, hi, out),
-            Method::Radial => {
-                for (a, b) in prefilter::candidate_ranges(self, o, d) {
-                    let (a, b) = widen(a, b, lo, hi);
+        if method == Method::Radial {
+            let quad = branches::Quadric::new(self, o, d);
+            for (a, b) in prefilter::candidate_ranges(self, o, d) {
+                let (a, b) = widen(a, b, lo, hi);
+                if self.oblique(d, a, b) {
+                    // Away from perpendicular the roots of `g` are simple and well apart, and
+                    // `w(u)` is well conditioned: the cheaper one-dimensional isolation.
                     for u in self.radial_roots_between(o, d, 1.0, a, b) {
                         self.push_circle_root(o, d, u, out);
                     }
+                    continue;
+                }
+                // The ellipsoid turns with the frame: no enclosure may span a switch of the
+                // Frenet frame (the sphere of a round fiber does not turn).
+                let mut start = a;
+                if matches!(self.framing, Framing::Frenet) {
+                    for s in frenet_switches(&self.axis, a, b) {
+                        quad.roots(start, s.next_down(), out);
+                        start = s;
+                    }
+                }
+                quad.roots(start, b, out);
+            }
+            return;
+        }
+        // Only where phi lies in the section's bounding disc can it meet the section: between
+        // sign changes of g with R = the bounding radius, where g < 0. There phi is bounded (no
+        // poles), which keeps the subdivision short. A 1% larger disc keeps the hits well inside
+        // the ranges.
+        let r = self.section.bounding_radius() * 1.01;
+        let g = Radial {
+            cyl: self,
+            o,
+            d,
+            radius: r,
+        };
+        let mut found = ArrayVec::new();
+        for (a, b) in prefilter::candidate_ranges(self, o, d) {
+            let (a, b) = widen(a, b, lo, hi);
+            if !self.oblique(d, a, b) {
+                prism::roots(self, o, d, (a, b), out);
+                continue;
+            }
+            let mut ends: ArrayVec<f64, { MAX_ROOTS + 2 }> = ArrayVec::new();
+            ends.push(a);
+            ends.extend(self.radial_roots_between(o, d, r, a, b));
+            ends.push(b);
+            for w in ends.windows(2) {
+                let (a, b) = (w[0], w[1]);
+                if b > a && g.eval(0.5 * (a + b)) < 0.0 {
+                    curve_curve::roots(self, o, d, (a, b), (lo, hi), &mut found);
                 }
             }
-            _ => {
-                // Only where phi lies in the section's bounding disc can it meet the section:
-                // between sign changes of g with R = the bounding radius, where g < 0. There phi
-                // is bounded (no poles), which keeps the subdivision short. A 1% larger disc keeps
-                // the hits well inside the ranges.
-                let r = self.section.bounding_radius() * 1.01;
-                let g = Radial {
-                    cyl: self,
-                    o,
-                    d,
-                    radius: r,
-                };
-                let mut found = ArrayVec::new();
-                for (a, b) in prefilter::candidate_ranges(self, o, d) {
-                    let (a, b) = widen(a, b, lo, hi);
-                    let mut ends: ArrayVec<f64, { MAX_ROOTS + 2 }> = ArrayVec::new();
-                    ends.push(a);
-                    ends.extend(self.radial_roots_between(o, d, r, a, b));
-                    ends.push(b);
-                    for w in ends.windows(2) {
-                        let (a, b) = (w[0], w[1]);
-                        if b > a && g.eval(0.5 * (a + b)) < 0.0 {
-                            curve_curve::roots(self, o, d, (a, b), (lo, hi), &mut found);
-                        }
-                    }
-                }
-                curve_curve::dedupe(&mut found);
-                for (u, v) in found {
-                    let w = self.plane_w_r(o, d, u);
-                    if w.is_finite() && !out.is_full() {
-                        out.push(SideRoot { u, w, v });
-                    }
-                }
+        }
+        curve_curve::dedupe(&mut found);
+        for (u, v) in found {
+            let w = self.plane_w_r(o, d, u);
+            if w.is_finite() && !out.is_full() {
+                out.push(SideRoot { u, w, v });
             }
         }
     }
 
     /// Records the root at `u` of a unit-circle section, with `v` the angle of `phi(u)`.
     pub(crate) fn push_circle_root(&self, o: DVec3, d: DVec3, u: f64, out: &mut SideRoots) {
-        let (phi, w) = self.phi_r(o, d, u);
+        let (qphi, q) = self.scaled_phi_r(o, d, u);
+        let w = self.plane_w_r(o, d, u);
         if w.is_finite() && !out.is_full() {
             out.push(SideRoot {
                 u,
                 w,
-                v: crate::section::angle(v2(phi)),
+                v: crate::section::angle(DVec2::new(qphi.x / q, qphi.y / q)),
             });
-        }
-    }
-
-    /// The ray lies in the normal plane at `u`: it is the line `phi0 + w phid` in section
-    /// coordinates (the rule is linear in the section point); intersect it with the section.
-    pub(crate) fn in_plane_roots(&self, o: DVec3, d: DVec3, u: f64, out: &mut SideRoots) {
-        let f = self.frame(u);
-        let e = o - self.axis.point(u);
-        let rho0 = V2::new(f.n.dot(e), f.b.dot(e));
-        let rhod = V2::new(f.n.dot(d), f.b.dot(d));
-        let phi0 = v2(self.sweep.inverse(u, rho0));
-        let phid = v2(self.sweep.inverse(u, rhod));
-        if phid == DVec2::ZERO {
-            return;
-        }
-        for (w, v) in self.section.intersect_line(phi0, phid) {
-            if !out.is_full() {
-                out.push(SideRoot { u, w, v });
-            }
         }
     }
 

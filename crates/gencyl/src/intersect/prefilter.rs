@@ -1,22 +1,25 @@
-//! A frame-free prefilter: the `u` ranges where the ray passes within the section's circumscribed
-//! tube, so the exact (and costlier) methods only search there.
+//! A frame-free prefilter: the `u` ranges where the ray passes within reach of the axis, so the
+//! exact (and costlier) methods only search there.
 //!
 //! The section lies in the disc of radius `r_out` and the rule stretches by at most
-//! `L(u) = L0 + (L1 - L0) u`, so a side hit at `u` needs the ray's in-plane offset `rho` to have
-//! `|rho| <= R(u) = L(u) r_out`, i.e. `P(u) = |V|^2 - R(u)^2 q^2 <= 0` with `V = q rho` (see
-//! [`super::polynomial`]): a degree-10 polynomial, independent of the frame. In Bernstein form
-//! on `[0, 1]` its coefficients bound it (convex hull property), and de Casteljau subdivision
-//! tightens the bounds quadratically; ranges whose coefficients are all positive are dropped.
+//! `L(u) = L0 + (L1 - L0) u`, so every point of the solid's slice at `u` lies within
+//! `R(u) = L(u) r_out` of `a(u)`. A ray that meets the slice therefore passes within `R(u)` of
+//! `a(u)`: with `P x = x - d (x.d)/|d|^2` the projection across the ray,
+//! `Q(u) = |P (o - a(u))|^2 - R(u)^2 <= 0`. `P (o - a(u))` is a cubic whose coefficients are the
+//! projected power-basis coefficients of the axis, so `Q` is a polynomial of degree 6,
+//! independent of the frame and of the ray's angle to the axis (no division by `a'.d`). In
+//! Bernstein form on `[0, 1]` its coefficients bound it (convex hull property), and de Casteljau
+//! subdivision tightens the bounds quadratically; ranges whose coefficients are all positive
+//! are dropped.
 
 use arrayvec::ArrayVec;
 use glam::DVec3;
 
-use super::polynomial::hit_polynomial;
 use crate::cylinder::GeneralizedCylinder;
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
-const DEGREE: usize = 10;
+const DEGREE: usize = 6;
 type Bernstein = [f64; DEGREE + 1];
 
 /// Ranges kept are at most this wide before merging (a coarse cover is enough: the exact
@@ -57,7 +60,47 @@ fn split(b: &Bernstein) -> (Bernstein, Bernstein) {
     (left, right)
 }
 
-/// The `u` ranges in `[0, 1]` (before the caller's margin) where `P(u) <= 0` may hold, sorted
+/// The power-basis coefficients of `Q(u) = |P (o - a(u))|^2 - R(u)^2` (module docs) for the
+/// reach `R(u) = r[0] + (r[1] - r[0]) u`, lowest degree first, and the magnitude of the terms
+/// that cancel in them (for the rounding bound).
+fn reach_polynomial<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+    r: [f64; 2],
+) -> ([f64; DEGREE + 1], f64) {
+    let p = cyl.axis.points;
+    // a(u) = c0 + c1 u + c2 u^2 + c3 u^3.
+    let c = [
+        p[0],
+        3.0 * (p[1] - p[0]),
+        3.0 * (p[2] - 2.0 * p[1] + p[0]),
+        p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0],
+    ];
+    let across = |x: DVec3| x - d * (x.dot(d) / d.length_squared());
+    let e = [
+        across(o - c[0]),
+        -across(c[1]),
+        -across(c[2]),
+        -across(c[3]),
+    ];
+    let mut f = [0.0; DEGREE + 1];
+    let mut size = 0.0f64;
+    for i in 0..4 {
+        for j in 0..4 {
+            let t = e[i].dot(e[j]);
+            f[i + j] += t;
+            size = size.max(e[i].length() * e[j].length());
+        }
+    }
+    let dr = r[1] - r[0];
+    f[0] -= r[0] * r[0];
+    f[1] -= 2.0 * r[0] * dr;
+    f[2] -= dr * dr;
+    (f, size.max(r[0] * r[0]).max(r[1] * r[1]))
+}
+
+/// The `u` ranges in `[0, 1]` (before the caller's margin) where `Q(u) <= 0` may hold, sorted
 /// and disjoint. Empty when the ray cannot meet the side surface.
 pub(crate) fn candidate_ranges<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
@@ -68,9 +111,10 @@ pub(crate) fn candidate_ranges<C: CrossSection, S: SweepRule>(
     let r_out = cyl.section.bounding_radius();
     // 1e-6 relative head room keeps hits that rounding would put just outside.
     let grow = r_out * (1.0 + 1e-6);
-    let b = to_bernstein(&hit_polynomial(cyl, o, d, [l0 * grow, l1 * grow]));
-    // Rounding in forming the coefficients: relative to their magnitude.
-    let eps = 1e-12 * b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (power, size) = reach_polynomial(cyl, o, d, [l0 * grow, l1 * grow]);
+    let b = to_bernstein(&power);
+    // Rounding in forming the coefficients: relative to the terms that cancel in them.
+    let eps = 1e-12 * size;
     let mut out: ArrayVec<(f64, f64), MAX_RANGES> = ArrayVec::new();
     let mut stack: ArrayVec<(Bernstein, f64, f64), 32> = ArrayVec::new();
     stack.push((b, 0.0, 1.0));
@@ -102,7 +146,7 @@ mod tests {
 
     #[test]
     fn bernstein_form_evaluates_like_the_power_form() {
-        let a: [f64; 11] = [1.0, -2.0, 0.5, 3.0, -1.0, 0.25, 2.0, -0.5, 0.1, -3.0, 1.5];
+        let a: [f64; DEGREE + 1] = [1.0, -2.0, 0.5, 3.0, -1.0, 0.25, 2.0];
         let b = to_bernstein(&a);
         let (l, r) = split(&b);
         let bern = |b: &Bernstein, t: f64| {

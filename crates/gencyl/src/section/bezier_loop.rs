@@ -4,6 +4,7 @@ use glam::DVec2;
 use polycool::Cubic;
 
 use super::{CrossSection, LineCrossings};
+use crate::real::{Real, V2};
 
 /// A closed piecewise-cubic Bezier profile: `k` cubic pieces, piece `i` running from anchor
 /// `P_i` through controls `C_i`, `D_i` to the next anchor `P_{(i+1) mod k}`.
@@ -180,6 +181,25 @@ impl CrossSection for BezierLoop {
     fn point(&self, v: f64) -> DVec2 {
         let (i, s) = self.locate(v);
         eval(&self.pieces[i], s)
+    }
+
+    /// The cubic of the piece holding `v.value()` at `s = (v - v_i) k / (2 pi)`, in Bernstein form.
+    fn point_r<T: Real>(&self, v: T) -> V2<T> {
+        let (i, _) = self.locate(v.value());
+        let k = self.pieces.len() as f64;
+        let s = (v - T::cst(i as f64 / k * TAU)).scale(k / TAU);
+        let t = T::cst(1.0) - s;
+        let p = &self.pieces[i];
+        let w = [
+            t * t * t,
+            (s * t * t).scale(3.0),
+            (s * s * t).scale(3.0),
+            s * s * s,
+        ];
+        let c = |f: fn(DVec2) -> f64| {
+            w[0].scale(f(p[0])) + w[1].scale(f(p[1])) + w[2].scale(f(p[2])) + w[3].scale(f(p[3]))
+        };
+        V2::new(c(|q| q.x), c(|q| q.y))
     }
 
     /// `d cs / d v = B_i'(s) * k / (2 pi)`.

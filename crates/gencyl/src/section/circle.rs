@@ -3,6 +3,7 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use glam::DVec2;
 
 use super::{CrossSection, LineCrossings};
+use crate::real::{Real, V2};
 
 /// The unit circle `cs(v) = (cos v, sin v)`, counter-clockwise (seed section 3).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -14,6 +15,10 @@ impl CrossSection for UnitCircle {
     }
     fn derivative(&self, v: f64) -> DVec2 {
         DVec2::new(-v.sin(), v.cos())
+    }
+    fn point_r<T: Real>(&self, v: T) -> V2<T> {
+        let (s, c) = v.sin_cos();
+        V2::new(c, s)
     }
     fn contains(&self, p: DVec2) -> bool {
         p.length_squared() <= 1.0

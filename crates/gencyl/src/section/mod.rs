@@ -10,6 +10,8 @@ pub(crate) use circle::angle;
 use arrayvec::ArrayVec;
 use glam::DVec2;
 
+use crate::real::{Real, V2};
+
 /// Most crossings of a line with a section that [`CrossSection::intersect_line`] reports.
 pub const MAX_LINE_CROSSINGS: usize = 24;
 
@@ -22,6 +24,10 @@ pub trait CrossSection {
     fn point(&self, v: f64) -> DVec2;
     /// `d cs / d v`.
     fn derivative(&self, v: f64) -> DVec2;
+    /// `cs(v)` over any [`Real`], for `v` within the smooth piece of the curve that holds
+    /// `v.value()`: an enclosure over a range of `v` holds the curve only if the range stays in
+    /// that piece, as the ranges between [`CrossSection::monotone_breaks`] do.
+    fn point_r<T: Real>(&self, v: T) -> V2<T>;
     /// Whether `p` lies inside the closed region (the boundary counts as inside).
     fn contains(&self, p: DVec2) -> bool;
     /// `max |cs(v)|`: the section lies in the disc of this radius about the origin.
@@ -70,6 +76,9 @@ impl CrossSection for Section {
     }
     fn derivative(&self, v: f64) -> DVec2 {
         forward!(self, s => s.derivative(v))
+    }
+    fn point_r<T: Real>(&self, v: T) -> V2<T> {
+        forward!(self, s => s.point_r(v))
     }
     fn contains(&self, p: DVec2) -> bool {
         forward!(self, s => s.contains(p))

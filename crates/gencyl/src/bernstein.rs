@@ -1,0 +1,195 @@
+//! Polynomials in Bernstein form on `[0, 1]`: `p(s) = sum_k b_k C(n, k) s^k (1 - s)^(n - k)`.
+//!
+//! The coefficients bound the polynomial on `[0, 1]` (convex hull property); de Casteljau's
+//! algorithm evaluates it and splits it into the coefficients on subintervals, which bound it
+//! there ever more tightly (quadratically in the width), and does so stably: every step is a
+//! convex combination, so a value's rounding error stays within a few units of the largest
+//! coefficient. Products and derivatives stay in the form. `K` is the number of coefficients,
+//! the degree plus one.
+
+/// A polynomial of degree `K - 1` in Bernstein form on `[0, 1]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bernstein<const K: usize>(pub [f64; K]);
+
+/// `C(n, k)` for `n < 16`.
+fn binomial(n: usize, k: usize) -> f64 {
+    let mut c = 1.0;
+    for i in 0..k {
+        c = c * (n - i) as f64 / (i + 1) as f64;
+    }
+    c
+}
+
+impl<const K: usize> Bernstein<K> {
+    /// The degree.
+    pub const DEGREE: usize = K - 1;
+
+    /// `p(s)` by de Casteljau's algorithm.
+    #[inline]
+    pub fn eval(&self, s: f64) -> f64 {
+        let mut w = self.0;
+        for k in 1..K {
+            for i in 0..K - k {
+                w[i] += s * (w[i + 1] - w[i]);
+            }
+        }
+        w[0]
+    }
+
+    /// The coefficients on `[0, s]` and on `[s, 1]` (each reparametrised to `[0, 1]`).
+    #[inline]
+    pub fn split(&self, s: f64) -> (Self, Self) {
+        let mut w = self.0;
+        let (mut left, mut right) = ([0.0; K], [0.0; K]);
+        for k in 0..K {
+            left[k] = w[0];
+            right[K - 1 - k] = w[K - 1 - k];
+            for i in 0..K - 1 - k {
+                w[i] += s * (w[i + 1] - w[i]);
+            }
+        }
+        (Bernstein(left), Bernstein(right))
+    }
+
+    /// The coefficients on `[s0, s1]` (reparametrised to `[0, 1]`).
+    #[inline]
+    pub fn restrict(&self, s0: f64, s1: f64) -> Self {
+        if s0 == 0.0 && s1 == 1.0 {
+            return *self;
+        }
+        let right = if s1 == 1.0 { *self } else { self.split(s1).0 };
+        if s0 == 0.0 || s1 == 0.0 {
+            return right;
+        }
+        right.split(s0 / s1).1
+    }
+
+    /// The smallest and largest coefficient: bounds of `p` on `[0, 1]`.
+    #[inline]
+    pub fn range(&self) -> (f64, f64) {
+        self.0
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &c| {
+                (lo.min(c), hi.max(c))
+            })
+    }
+
+    /// The largest coefficient magnitude: the scale of rounding errors in `p`.
+    #[inline]
+    pub fn magnitude(&self) -> f64 {
+        self.0.iter().fold(0.0f64, |m, c| m.max(c.abs()))
+    }
+
+    /// `p'` (in `s`) as a polynomial with `J = K - 1` coefficients: `n (b_{k+1} - b_k)`.
+    #[inline]
+    pub fn derivative<const J: usize>(&self) -> Bernstein<J> {
+        debug_assert_eq!(J + 1, K, "the derivative has one coefficient fewer");
+        let n = (K - 1) as f64;
+        Bernstein(std::array::from_fn(|k| n * (self.0[k + 1] - self.0[k])))
+    }
+
+    /// `p q` with `M = K + L - 1` coefficients:
+    /// `c_k = sum_{i + j = k} C(m, i) C(n, j) / C(m + n, k) a_i b_j`.
+    #[inline]
+    pub fn mul<const L: usize, const M: usize>(&self, o: &Bernstein<L>) -> Bernstein<M> {
+        debug_assert_eq!(M, K + L - 1, "degrees add");
+        let (m, n) = (K - 1, L - 1);
+        let mut c = [0.0; M];
+        for (i, &a) in self.0.iter().enumerate() {
+            for (j, &b) in o.0.iter().enumerate() {
+                c[i + j] += binomial(m, i) * binomial(n, j) * a * b;
+            }
+        }
+        for (k, ck) in c.iter_mut().enumerate() {
+            *ck /= binomial(m + n, k);
+        }
+        Bernstein(c)
+    }
+
+    /// The same polynomial with `M >= K` coefficients (degree elevation).
+    #[inline]
+    pub fn elevate<const M: usize>(&self) -> Bernstein<M> {
+        debug_assert!(M >= K, "elevation raises the degree");
+        // p * 1, with 1 = sum of the M - K + 1 Bernstein basis functions of degree M - K.
+        let one = [1.0; 16];
+        let mut c = [0.0; M];
+        let (m, n) = (K - 1, M - K);
+        for (i, &a) in self.0.iter().enumerate() {
+            for (j, &b) in one.iter().take(n + 1).enumerate() {
+                c[i + j] += binomial(m, i) * binomial(n, j) * a * b;
+            }
+        }
+        for (k, ck) in c.iter_mut().enumerate() {
+            *ck /= binomial(m + n, k);
+        }
+        Bernstein(c)
+    }
+
+    /// `p + q`.
+    #[inline]
+    pub fn add(&self, o: &Self) -> Self {
+        Bernstein(std::array::from_fn(|k| self.0[k] + o.0[k]))
+    }
+
+    /// `p - q`.
+    #[inline]
+    pub fn sub(&self, o: &Self) -> Self {
+        Bernstein(std::array::from_fn(|k| self.0[k] - o.0[k]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_rng::Lcg;
+
+    /// The power form `sum a_j s^j`, by Horner's rule: an independent evaluation.
+    fn power(a: &[f64], s: f64) -> f64 {
+        a.iter().rev().fold(0.0, |acc, &c| acc * s + c)
+    }
+
+    /// Bernstein coefficients from power coefficients, `b_i = sum_{j <= i} C(i, j) / C(n, j) a_j`.
+    fn from_power<const K: usize>(a: &[f64; K]) -> Bernstein<K> {
+        let n = K - 1;
+        Bernstein(std::array::from_fn(|i| {
+            (0..=i)
+                .map(|j| binomial(i, j) / binomial(n, j) * a[j])
+                .sum()
+        }))
+    }
+
+    #[test]
+    fn operations_match_the_power_form() {
+        let mut rng = Lcg(3);
+        for _ in 0..50 {
+            let a: [f64; 4] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+            let b: [f64; 3] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+            let (pa, pb) = (from_power(&a), from_power(&b));
+            let prod: Bernstein<6> = pa.mul(&pb);
+            let da: Bernstein<3> = pa.derivative();
+            let up: Bernstein<7> = pa.elevate();
+            let (s0, s1) = (rng.range(0.0, 0.5), rng.range(0.5, 1.0));
+            let part = pa.restrict(s0, s1);
+            for i in 0..=20 {
+                let s = i as f64 / 20.0;
+                let want = power(&a, s);
+                assert!((pa.eval(s) - want).abs() < 1e-12, "eval at {s}");
+                assert!((up.eval(s) - want).abs() < 1e-12, "elevated at {s}");
+                let wp = want * power(&b, s);
+                assert!((prod.eval(s) - wp).abs() < 1e-12, "product at {s}");
+                let wd = a[1] + 2.0 * a[2] * s + 3.0 * a[3] * s * s;
+                assert!((da.eval(s) - wd).abs() < 1e-12, "derivative at {s}");
+                let x = s0 + (s1 - s0) * s;
+                assert!(
+                    (part.eval(s) - power(&a, x)).abs() < 1e-12,
+                    "restricted at {s}"
+                );
+                let (lo, hi) = part.range();
+                assert!(
+                    lo - 1e-12 <= power(&a, x) && power(&a, x) <= hi + 1e-12,
+                    "bounds"
+                );
+            }
+        }
+    }
+}

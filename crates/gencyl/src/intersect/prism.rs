@@ -1,0 +1,205 @@
+//! Any section, for rays nearly perpendicular to the axis: the ray's crossings of the section
+//! extruded along the tangent, in the normal-plane condition, as a system in `(u, v)`.
+//!
+//! At each `u` the ray, projected along the tangent `t(u)` into the normal plane and mapped by
+//! the rule's inverse, is the line `phi0(u) + w phid(u)` in section coordinates (with
+//! `e = o - a(u)`: `phi0 = s^-1(n.e, b.e)`, `phid = s^-1(n.d, b.d)`): the ray meets the prism
+//! `{section at u} + R t(u)` where that line crosses the section curve, at `cs(v)` with
+//! `w = (cs(v) - phi0).phid / |phid|^2`. Such a crossing is a hit when it lies in the normal plane,
+//! `m + q w = 0` (`m = a'.e`, `q = a'.d`). So the side roots on the section piece holding `v` are
+//! the roots of
+//!
+//! `E1(u, v) = (cs(v) - phi0(u)) x phid(u)`,
+//! `E2(u, v) = m(u) |phid(u)|^2 + q(u) (cs(v) - phi0(u)).phid(u)`,
+//!
+//! isolated by interval Newton on boxes ([`isolate_roots_2d`]). Unlike `phi(u) = cs(v)` with
+//! `w = -m/q` (seed 2.1, [`super::curve_curve`]), whose `v` column `-q cs'(v)` vanishes with `q`,
+//! the Jacobian stays regular as `q -> 0`: `E2` pins `u` (through `m`), `E1` pins `v` (through
+//! the line), and exactly perpendicular rays need no special case. Away from perpendicular the
+//! subdivision of [`super::curve_curve`] is faster and is used instead.
+
+use arrayvec::ArrayVec;
+use glam::DVec3;
+
+use super::{SideRoot, SideRoots};
+use crate::cylinder::GeneralizedCylinder;
+use crate::frame::{Framing, frenet_switches};
+use crate::real::{Dual, Interval, Real, Taylor, V2, V3};
+use crate::roots::{Enclosure2, Function2D, Isolate2D, isolate_roots_2d};
+use crate::section::CrossSection;
+use crate::sweep::SweepRule;
+
+/// `(E1, E2)` for the local ray `o + w d`.
+struct Prism<'a, C, S> {
+    cyl: &'a GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+}
+
+/// The `u` part of `E`: with `A = phid`, `B = phi0 x phid`, `C = m |phid|^2 - q phi0.phid` and
+/// `Q = q phid`, `E1 = cs(v) x A - B` and `E2 = C + Q.cs(v)`. Each is enclosed as a whole (one
+/// Taylor model over a range of `u`), which keeps the cancellations inside them exact.
+struct UPart<T> {
+    a: V2<T>,
+    b: T,
+    c: T,
+    q: V2<T>,
+}
+
+impl<C: CrossSection, S: SweepRule> Prism<'_, C, S> {
+    /// `phi0(u)`, `phid(u)`, `m(u)`, `q(u)`.
+    #[inline(always)]
+    fn line<T: Real>(&self, u: T) -> (V2<T>, V2<T>, T, T) {
+        let [ao, d1, d2] = self.cyl.axis_jet_r(u, self.o);
+        let e = V3::new(-ao.x, -ao.y, -ao.z);
+        let [_, n, b] = self.cyl.frame_from_jet_r(u, d1, d2);
+        let rule = &self.cyl.sweep;
+        let phi0 = rule.inverse(u, V2::new(n.dot(e), b.dot(e)));
+        let phid = rule.inverse(u, V2::new(n.dot_cst(self.d), b.dot_cst(self.d)));
+        (phi0, phid, d1.dot(e), d1.dot_cst(self.d))
+    }
+
+    #[inline(always)]
+    fn u_part<T: Real>(&self, u: T) -> UPart<T> {
+        let (p0, pd, m, q) = self.line(u);
+        UPart {
+            a: pd,
+            b: p0.x * pd.y - p0.y * pd.x,
+            c: m * pd.norm2() - q * p0.dot(pd),
+            q: V2::new(q * pd.x, q * pd.y),
+        }
+    }
+}
+
+/// `E` from its `u` part and the section point `c`.
+#[inline(always)]
+fn combine<T: Real>(p: &UPart<T>, c: V2<T>) -> [T; 2] {
+    [c.x * p.a.y - c.y * p.a.x - p.b, p.c + p.q.dot(c)]
+}
+
+impl<C: CrossSection, S: SweepRule> Function2D for Prism<'_, C, S> {
+    fn jet(&self, x: [f64; 2]) -> ([f64; 2], [[f64; 2]; 2]) {
+        let p = self.u_part(Dual::var(x[0]));
+        let c = self.cyl.section.point_r(Dual::var(x[1]));
+        let value = |p: &UPart<Dual<f64>>| UPart {
+            a: V2::new(p.a.x.v, p.a.y.v),
+            b: p.b.v,
+            c: p.c.v,
+            q: V2::new(p.q.x.v, p.q.y.v),
+        };
+        let slope = |p: &UPart<Dual<f64>>| UPart {
+            a: V2::new(p.a.x.d, p.a.y.d),
+            b: p.b.d,
+            c: p.c.d,
+            q: V2::new(p.q.x.d, p.q.y.d),
+        };
+        let (pv, pu) = (value(&p), slope(&p));
+        let (cv, cd) = (V2::new(c.x.v, c.y.v), V2::new(c.x.d, c.y.d));
+        let f = combine(&pv, cv);
+        let du = combine(&pu, cv);
+        // d/dv: only cs depends on v (the constant terms B, C drop out).
+        let dv = [cd.x * pv.a.y - cd.y * pv.a.x, pv.q.dot(cd)];
+        (f, [[du[0], dv[0]], [du[1], dv[1]]])
+    }
+
+    fn enclose(&self, lo: [f64; 2], hi: [f64; 2]) -> Enclosure2 {
+        let p = self.u_part(Dual::var(Taylor::var(lo[0], hi[0])));
+        let iv = |t: Taylor| t.enclosure();
+        let value = UPart {
+            a: V2::new(iv(p.a.x.v), iv(p.a.y.v)),
+            b: iv(p.b.v),
+            c: iv(p.c.v),
+            q: V2::new(iv(p.q.x.v), iv(p.q.y.v)),
+        };
+        let slope = UPart {
+            a: V2::new(iv(p.a.x.d), iv(p.a.y.d)),
+            b: iv(p.b.d),
+            c: iv(p.c.d),
+            q: V2::new(iv(p.q.x.d), iv(p.q.y.d)),
+        };
+        let c = self
+            .cyl
+            .section
+            .point_r(Dual::var(Interval::exact(lo[1], hi[1])));
+        let (cv, cd) = (V2::new(c.x.v, c.y.v), V2::new(c.x.d, c.y.d));
+        let du = combine(&slope, cv);
+        let dv = [cd.x * value.a.y - cd.y * value.a.x, value.q.dot(cd)];
+        // At the centre: the u part as a point enclosure, the section point as an interval.
+        let mid = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])];
+        let pc = self.u_part(Interval::cst(mid[0]));
+        let cc = self.cyl.section.point_r(Interval::cst(mid[1]));
+        // Near an inflection the frame's enclosure blows up over ranges of u that reach it:
+        // those are split in u (splitting v would only double them).
+        let bounded = [value.a.x, value.a.y, value.b, value.c, value.q.x, value.q.y]
+            .iter()
+            .chain(&[slope.a.x, slope.a.y, slope.b, slope.c, slope.q.x, slope.q.y])
+            .all(|x| x.lo.is_finite() && x.hi.is_finite());
+        Enclosure2 {
+            f: combine(&value, cv),
+            j: [[du[0], dv[0]], [du[1], dv[1]]],
+            f_center: combine(&pc, cc),
+            split: (!bounded).then_some(0),
+        }
+    }
+}
+
+/// The side roots on the `u` range `[u0, u1]`, appended to `out`.
+pub(crate) fn roots<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+    (u0, u1): (f64, f64),
+    out: &mut SideRoots,
+) {
+    // Work from the ray's point nearest the range's middle: small offsets, small cancellation.
+    let shift = d.dot(cyl.axis.point(0.5 * (u0 + u1)) - o) / d.length_squared();
+    let shift = if shift.is_finite() { shift } else { 0.0 };
+    let f = Prism {
+        cyl,
+        o: o + shift * d,
+        d,
+    };
+    let breaks = cyl.section.monotone_breaks();
+    let opts = Isolate2D {
+        // In u: 1e-13 moves the point by 1e-13 of the axis' length; in v, by 1e-12 of the
+        // section's size. Below that the enclosures of E are at their rounding floor.
+        min_width: [1e-13, 1e-12 * std::f64::consts::TAU],
+        max_boxes: 2000,
+    };
+    let mut stretches: ArrayVec<(f64, f64), 9> = ArrayVec::new();
+    let mut start = u0;
+    if let Framing::Frenet = cyl.framing {
+        for s in frenet_switches(&cyl.axis, u0, u1) {
+            stretches.push((start, s.next_down()));
+            start = s;
+        }
+    }
+    stretches.push((start, u1));
+    for (a, b) in stretches {
+        for vw in breaks.windows(2) {
+            let mut found = ArrayVec::new();
+            isolate_roots_2d(&f, [a, vw[0]], [b, vw[1]], &opts, &mut found);
+            for [u, v] in found {
+                let (phi0, phid, _, _) = f.line(u);
+                let (phi0, phid) = (phi0.value(), phid.value());
+                let w = (cyl.section.point(v) - phi0).dot(phid) / phid.length_squared();
+                push(u, w + shift, v.rem_euclid(std::f64::consts::TAU), out);
+            }
+        }
+    }
+}
+
+/// Records a root unless it repeats one (a root on a break between two pieces is found in
+/// both).
+fn push(u: f64, w: f64, v: f64, out: &mut SideRoots) {
+    if !w.is_finite() || out.is_full() {
+        return;
+    }
+    let dup = out.iter().any(|r| {
+        let dv = (r.v - v).abs();
+        (r.u - u).abs() <= 1e-12 && dv.min(std::f64::consts::TAU - dv) <= 1e-9
+    });
+    if !dup {
+        out.push(SideRoot { u, w, v });
+    }
+}
