@@ -1,6 +1,7 @@
-//! Timing of one exact ray-fiber test, per method, on three fibers: a round curved fiber, an
+//! Timing of one exact ray-fiber test, per method, on four fibers: a round curved fiber, an
 //! elliptical fiber (major/minor radius 0.03/0.015) twisted by a full turn on a curly 3D
-//! Bezier, and the same fiber untwisted. A fixed seeded set of rays passes within 3.2 radii of
+//! Bezier, the same fiber untwisted, and untwisted with the projection frame strands use
+//! (`ellipse-projected`) instead of Frenet's. A fixed seeded set of rays passes within 3.2 radii of
 //! the axis; a little over half of them hit.
 //!
 //! `cargo run --release -p gencyl --example intersect_timing [rays]` (default 2000 rays; the
@@ -12,7 +13,7 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use gencyl::{FiberSpec, GeneralizedCylinder, Method, Ray, Section};
+use gencyl::{CubicBezier, FiberSpec, Framing, GeneralizedCylinder, Method, Ray, Section};
 use glam::DVec3;
 
 /// A small deterministic generator (splitmix64).
@@ -90,6 +91,7 @@ fn main() {
             0.03,
         ),
         ("ellipse", elliptical([0.0, 0.0]), 0.03),
+        ("ellipse-projected", elliptical([0.0, 0.0]), 0.03),
     ];
     let mut hits = Vec::new();
     let only_case = std::env::var("TIMING_CASE").ok();
@@ -98,7 +100,14 @@ fn main() {
         if only_case.as_deref().is_some_and(|c| c != name) {
             continue;
         }
-        let cyl = spec.build().expect("valid fiber");
+        let cyl = if name == "ellipse-projected" {
+            let framing = Framing::projected_for_axis(&CubicBezier::new(CURLY), &[])
+                .expect("a projection reference");
+            spec.build_framed(framing)
+        } else {
+            spec.build()
+        }
+        .expect("valid fiber");
         let rays = rays(&cyl, r, n, 7);
         for method in [Method::Auto, Method::Round, Method::Radial, Method::General] {
             if method == Method::Round && name != "round" {

@@ -3,7 +3,10 @@
 use glam::{DVec2, DVec3};
 
 use crate::curve::CubicBezier;
-use crate::frame::{FRENET_DEGENERATE, Frame, FrameAt, Framing, frame_r, frenet_shift};
+use crate::frame::{
+    FRENET_DEGENERATE, Frame, FrameAt, Framing, PROJECTION_MIN_SINE, STRAIGHT_TOLERANCE, frame_r,
+    frenet_shift, projected_frame,
+};
 use crate::real::{Dual, Interval, Real, V2, V3};
 use crate::section::{CrossSection, Section};
 use crate::sweep::{HairSweep, SweepRule};
@@ -141,6 +144,9 @@ pub enum GeometryError {
     /// The normal hint is parallel to a straight axis, or not finite.
     #[error("normal_hint is parallel to the straight axis (or not finite)")]
     BadNormalHint,
+    /// A framing given to [`GeneralizedCylinder::with_framing`] does not fit the axis.
+    #[error("{0}")]
+    BadFraming(String),
     /// The sweep rule is unusable.
     #[error("{0}")]
     Sweep(String),
@@ -178,6 +184,96 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         caps: bool,
         normal_hint: Option<DVec3>,
     ) -> Result<Self, GeometryError> {
+        Self::build(axis, section, sweep, caps, |local| {
+            if normal_hint.is_some_and(|h| !h.is_finite()) {
+                return Err(GeometryError::BadNormalHint);
+            }
+            Framing::for_axis(local, normal_hint).ok_or(GeometryError::BadNormalHint)
+        })
+    }
+
+    /// Builds a cylinder with the given framing instead of interface.md's default, with the
+    /// checks of [`Self::new`] and these on the framing:
+    /// - [`Framing::Frenet`]: the axis must not be straight (the frame would be undefined);
+    /// - [`Framing::Fixed`]: the axis must be straight (to [`STRAIGHT_TOLERANCE`]) and the frame
+    ///   orthonormal, right-handed, with `t` along the chord (to `1e-12`);
+    /// - [`Framing::Projected`]`(r)`: `r` finite and [`Framing::projection_sine`] at least
+    ///   [`PROJECTION_MIN_SINE`], so the frame is smooth on the whole segment.
+    ///
+    /// The framing must be the same at any position of the axis (all three are), as the
+    /// cylinder works relative to its first control point.
+    pub fn with_framing(
+        axis: CubicBezier,
+        section: C,
+        sweep: S,
+        caps: bool,
+        framing: Framing,
+    ) -> Result<Self, GeometryError> {
+        Self::build(axis, section, sweep, caps, |local| {
+            let straight = local.relative_deviation_from_chord() <= STRAIGHT_TOLERANCE;
+            let bad = |why: String| Err(GeometryError::BadFraming(why));
+            match framing {
+                Framing::Frenet if straight => {
+                    bad("the Frenet frame of a straight axis is undefined".into())
+                }
+                Framing::Fixed(_) if !straight => bad(
+                    "a fixed frame needs a straight axis (the normal planes turn along a curved one)"
+                        .into(),
+                ),
+                Framing::Fixed(f) => {
+                    let chord = (local.points[3] - local.points[0]).normalize();
+                    let err = [
+                        (f.t - chord).length(),
+                        (f.n.length() - 1.0).abs(),
+                        f.t.dot(f.n).abs(),
+                        (f.t.cross(f.n) - f.b).length(),
+                    ];
+                    if err.iter().all(|e| *e <= 1e-12) {
+                        Ok(framing)
+                    } else {
+                        bad(format!(
+                            "the fixed frame must be orthonormal with t along the chord, got {f:?}"
+                        ))
+                    }
+                }
+                Framing::Projected(r) => {
+                    if r.is_finite()
+                        && Framing::projection_sine_at_least(local, r, PROJECTION_MIN_SINE)
+                    {
+                        Ok(framing)
+                    } else {
+                        bad(format!(
+                            "the projection reference {r} comes within sin = {:.1e} of a tangent (at least {PROJECTION_MIN_SINE:.0e} needed)",
+                            Framing::projection_sine(local, r)
+                        ))
+                    }
+                }
+                Framing::Frenet => Ok(framing),
+            }
+        })
+    }
+
+    /// [`Self::with_framing`] for a framing already known to fit the axis (a strand's
+    /// projection framing, certified when it was chosen): the geometry's checks only.
+    pub(crate) fn with_checked_framing(
+        axis: CubicBezier,
+        section: C,
+        sweep: S,
+        caps: bool,
+        framing: Framing,
+    ) -> Result<Self, GeometryError> {
+        Self::build(axis, section, sweep, caps, |_| Ok(framing))
+    }
+
+    /// The checks and construction shared by [`Self::new`] and [`Self::with_framing`]; `framing`
+    /// chooses the frame for the axis relative to its first control point.
+    fn build(
+        axis: CubicBezier,
+        section: C,
+        sweep: S,
+        caps: bool,
+        framing: impl FnOnce(&CubicBezier) -> Result<Framing, GeometryError>,
+    ) -> Result<Self, GeometryError> {
         if let Some(i) = axis.points.iter().position(|p| !p.is_finite()) {
             return Err(GeometryError::NonFiniteAxis(i));
         }
@@ -214,10 +310,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 at,
             });
         }
-        if normal_hint.is_some_and(|h| !h.is_finite()) {
-            return Err(GeometryError::BadNormalHint);
-        }
-        let framing = Framing::for_axis(&local, normal_hint).ok_or(GeometryError::BadNormalHint)?;
+        let framing = framing(&local)?;
         let [l0, l1] = sweep.scale_bound();
         let r = l0.max(l1) * section.bounding_radius();
         let bounds = axis.points.iter().fold(Aabb::EMPTY, |b, &p| {
@@ -264,7 +357,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         self
     }
 
-    /// How the frame is defined (Frenet, or fixed for a straight axis).
+    /// How the frame is defined (Frenet, fixed for a straight axis, or projected).
     pub fn framing(&self) -> &Framing {
         &self.framing
     }
@@ -280,6 +373,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         FrameAt::new(&self.axis, &self.framing, u).frame
     }
 
+    /// The frame at `u` with its rates of change ([`FrameAt`]).
+    pub fn frame_at(&self, u: f64) -> FrameAt {
+        FrameAt::new(&self.axis, &self.framing, u)
+    }
+
     /// `Gamma(u, v) = a(u) + c_n(u, v) n(u) + c_b(u, v) b(u)`, `c = s(cs(v), u)`.
     pub fn surface_point(&self, u: f64, v: f64) -> DVec3 {
         let f = self.frame(u);
@@ -289,8 +387,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 
     /// The unit outward normal of the side surface,
     /// `N = orient * (dGamma/dv x dGamma/du) / |...|` (seed 2.4 with errata 2 and 4), where
-    /// `dGamma/du = a' + (dc_n/du) n + c_n n' + (dc_b/du) b + c_b b'` with the Frenet-Serret
-    /// derivatives times the speed, `dGamma/dv = (dc_n/dv) n + (dc_b/dv) b`, and
+    /// `dGamma/du = a' + (dc_n/du) n + c_n n' + (dc_b/du) b + c_b b'` with the frame's
+    /// derivatives ([`FrameAt::derivatives`]: the Frenet-Serret formulas times the speed, or
+    /// exact ones for a projected frame), `dGamma/dv = (dc_n/dv) n + (dc_b/dv) b`, and
     /// `orient = +1` for a counter-clockwise section under an orientation-keeping rule.
     pub fn normal(&self, u: f64, v: f64) -> DVec3 {
         let at = FrameAt::new(&self.axis, &self.framing, u);
@@ -432,6 +531,18 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     .inverse(u, V2::new(v.dot_cst(f.n), v.dot_cst(f.b)));
                 p.norm2() - rq2
             }
+            Framing::Projected(r) => {
+                // As for Frenet with a'' replaced by r: C = a' x r, n.V = |a'| (r.V)/|C|,
+                // b.V = (C.V)/|C| (a'.V = 0). g does not change when a' is scaled (|a'| and C
+                // scale alike), so a' is taken at unit size: no product underflows.
+                let [k1, _] = self.axis.derivative_scales();
+                let d1 = d1.scaled(T::cst(k1));
+                let c = d1.cross(V3::cst(*r));
+                let p = self
+                    .sweep
+                    .inverse(u, V2::new(d1.norm2().sqrt() * v.dot_cst(*r), c.dot(v)));
+                p.norm2() / c.norm2() - rq2
+            }
             Framing::Frenet => {
                 if frenet_shift(&self.axis, u.value()) != 0.0 {
                     let [_, n, b] = frame_r(&self.axis, &self.framing, u);
@@ -449,6 +560,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     }
 
     /// The frame `(t, n, b)` at `u` from the axis' jet `a'(u)`, `a''(u)` ([`Self::axis_jet_r`]):
+    /// projected, `t = a'/|a'|`, `b = (a' x r)/|a' x r|`, `n = b x t`; Frenet,
     /// `t = a'/|a'|`, `b = C/|C|` with `C = a' x a''`, `n = b x t`, through
     /// [`Self::reduced_second_r`] at strand ends (the frame does not change when `a''` is scaled)
     /// and [`frame_r`] where the Frenet frame at `u`'s representative value is degenerate.
@@ -456,6 +568,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     pub(crate) fn frame_from_jet_r<T: Real>(&self, u: T, d1: V3<T>, d2: V3<T>) -> [V3<T>; 3] {
         match &self.framing {
             Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
+            Framing::Projected(r) => {
+                let [k1, _] = self.axis.derivative_scales();
+                projected_frame(d1.scaled(T::cst(k1)), *r)
+            }
             Framing::Frenet => {
                 if frenet_shift(&self.axis, u.value()) != 0.0 {
                     return frame_r(&self.axis, &self.framing, u);
@@ -562,9 +678,260 @@ impl FiberSpec {
             self.normal_hint,
         )
     }
+
+    /// Builds the cylinder with the given framing ([`GeneralizedCylinder::with_framing`];
+    /// `normal_hint` is then unused).
+    pub fn build_framed(&self, framing: Framing) -> Result<GeneralizedCylinder, GeometryError> {
+        GeneralizedCylinder::with_framing(
+            CubicBezier::new(self.bezier),
+            self.section.clone(),
+            HairSweep {
+                major: self.major_radius,
+                minor: self.minor_radius,
+                rotation: self.rotation,
+            },
+            self.caps,
+            framing,
+        )
+    }
 }
 
 /// `p` as a `DVec2` (helper for section-plane points).
 pub(crate) fn v2(p: V2<f64>) -> DVec2 {
     DVec2::new(p.x, p.y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::section::BezierLoop;
+
+    fn curved() -> CubicBezier {
+        CubicBezier::new([
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(0.35, 0.45, 0.1),
+            DVec3::new(0.75, 0.05, 0.55),
+            DVec3::new(1.05, 0.45, 0.35),
+        ])
+    }
+
+    fn sweep() -> HairSweep {
+        HairSweep {
+            major: [0.08, 0.05],
+            minor: [0.03, 0.025],
+            rotation: [0.4, 2.9],
+        }
+    }
+
+    /// Three lobes (tips at radius 1, valleys at 0.5), counter-clockwise.
+    fn trilobal() -> Section {
+        let mut pts = Vec::new();
+        let anchor = |j: usize| {
+            let phi = std::f64::consts::FRAC_PI_2 + j as f64 * std::f64::consts::PI / 3.0;
+            let (r, l) = if j.is_multiple_of(2) {
+                (1.0, 0.42)
+            } else {
+                (0.5, 0.22)
+            };
+            let dir = DVec2::new(phi.cos(), phi.sin());
+            (r * dir, DVec2::new(-dir.y, dir.x), l)
+        };
+        for j in 0..6 {
+            let ((p, t, l), (p1, t1, l1)) = (anchor(j), anchor((j + 1) % 6));
+            pts.extend([p, p + l * t, p1 - l1 * t1]);
+        }
+        Section::Loop(BezierLoop::new(&pts).unwrap())
+    }
+
+    /// `with_framing` takes a framing that fits the axis and refuses one that does not: Frenet
+    /// on a curved axis (the same cylinder as `new`), not on a straight one; a fixed frame only
+    /// on a straight axis and along its chord; a projection reference only if it keeps away
+    /// from every tangent (not along one, not NaN). The geometry's own errors come first.
+    #[test]
+    fn with_framing_checks_the_framing_against_the_axis() {
+        let build = |axis: CubicBezier, framing| {
+            GeneralizedCylinder::with_framing(axis, Section::default(), sweep(), true, framing)
+        };
+        let straight = CubicBezier::new([0.0, 1.0, 2.0, 3.0].map(|x| DVec3::new(x, 0.0, 0.0)));
+        let frenet = build(curved(), Framing::Frenet).unwrap();
+        let plain = GeneralizedCylinder::new(curved(), Section::default(), sweep(), true, None);
+        assert_eq!(Ok(frenet), plain, "Frenet as new builds it");
+        let bad = |r: Result<GeneralizedCylinder, GeometryError>, what: &str| {
+            assert!(
+                matches!(r, Err(GeometryError::BadFraming(_))),
+                "{what}: {r:?}"
+            );
+        };
+        bad(
+            build(straight, Framing::Frenet),
+            "Frenet on a straight axis",
+        );
+        let fixed = Framing::for_axis(&straight, None).unwrap();
+        assert!(build(straight, fixed).is_ok(), "the default fixed frame");
+        bad(build(curved(), fixed), "a fixed frame on a curved axis");
+        let tilted = Frame {
+            t: DVec3::Y,
+            n: DVec3::Z,
+            b: DVec3::X,
+        };
+        bad(
+            build(straight, Framing::Fixed(tilted)),
+            "a fixed frame across the chord",
+        );
+        let along = curved().d1(0.3).normalize();
+        bad(
+            build(curved(), Framing::Projected(along)),
+            "a reference along a tangent",
+        );
+        bad(
+            build(curved(), Framing::Projected(DVec3::NAN)),
+            "a NaN reference",
+        );
+        let r = DVec3::new(-0.3, 0.2, 0.9);
+        let c = build(curved(), Framing::Projected(r)).unwrap();
+        assert_eq!(c.framing(), &Framing::Projected(r), "kept as given");
+        assert!(
+            build(straight, Framing::Projected(r)).is_ok(),
+            "a projection frame on a straight axis"
+        );
+        let cusp = CubicBezier::new([DVec3::ZERO, DVec3::X, DVec3::ZERO, DVec3::X]);
+        assert!(
+            matches!(
+                build(cusp, Framing::Projected(DVec3::Z)),
+                Err(GeometryError::Cusp { .. })
+            ),
+            "the cusp is reported"
+        );
+    }
+
+    /// With a projected frame the side normal equals the normalised cross product of central
+    /// differences of `Gamma` (`surface_point`; step 1e-6, error ~1e-9 from truncation and
+    /// rounding), for an elliptical twisted tapering fiber and a trilobal one: the frame's
+    /// derivatives enter `dGamma/du`, so a wrong `n'` or `b'` shows here; and it points out of
+    /// the solid (away from the axis on the convex ellipse).
+    #[test]
+    fn projected_normals_match_finite_differences_of_the_surface() {
+        let r = DVec3::new(-0.3, 0.2, 0.9);
+        for (name, section) in [("ellipse", Section::default()), ("trilobal", trilobal())] {
+            let c = GeneralizedCylinder::with_framing(
+                curved(),
+                section,
+                sweep(),
+                true,
+                Framing::Projected(r),
+            )
+            .unwrap();
+            let h = 1e-6;
+            let mut worst = 0.0f64;
+            for i in 1..20 {
+                for j in 0..24 {
+                    let (u, v) = (
+                        i as f64 / 20.0,
+                        (j as f64 + 0.3) * std::f64::consts::TAU / 24.0,
+                    );
+                    let gu = (c.surface_point(u + h, v) - c.surface_point(u - h, v)) / (2.0 * h);
+                    let gv = (c.surface_point(u, v + h) - c.surface_point(u, v - h)) / (2.0 * h);
+                    let fd = c.section.orientation() * gv.cross(gu).normalize();
+                    let n = c.normal(u, v);
+                    worst = worst.max((n - fd).length());
+                    assert!(
+                        (n - fd).length() < 1e-6,
+                        "{name} at ({u}, {v}): normal {n} vs finite differences {fd}"
+                    );
+                    if name == "ellipse" {
+                        let out = c.surface_point(u, v) - c.axis().point(u);
+                        assert!(n.dot(out) > 0.0, "{name}: outward at ({u}, {v})");
+                    }
+                }
+            }
+            eprintln!(
+                "[cylinder] {name}: largest normal error against finite differences {worst:.1e}"
+            );
+        }
+    }
+
+    /// The projected arms of `radial_g_r` and `frame_from_jet_r`, which the Radial and General
+    /// methods evaluate over `f64`, dual numbers, intervals and Taylor models: `g` (and `g'`)
+    /// equals the frame formula `|q phi|^2 - R^2 q^2` with `q phi = s^-1(n.V, b.V)` from
+    /// `frame_r`; the enclosures over random cells, narrow and wide, hold the sampled values of
+    /// `g`, `g'` and of the frame from the axis' jet.
+    #[test]
+    fn projected_radial_function_and_enclosures_hold() {
+        use crate::real::Taylor;
+        let c = GeneralizedCylinder::with_framing(
+            curved(),
+            Section::default(),
+            sweep(),
+            true,
+            Framing::Projected(DVec3::new(-0.3, 0.2, 0.9)),
+        )
+        .unwrap();
+        let mut rng = crate::test_rng::Lcg(29);
+        for i in 0..300 {
+            let o = c.axis.point(rng.range(0.0, 1.0)) + 0.2 * rng.unit() - 2.0 * rng.unit();
+            let d = rng.unit() * rng.range(0.5, 2.0);
+            let radius = rng.range(0.8, 1.3);
+            let g = |u: Dual<f64>| c.radial_g_r(o, d, u, radius);
+            let by_frame = |u: Dual<f64>| {
+                let (qphi, q) = c.scaled_phi_r(o, d, u);
+                qphi.norm2() - q.sqr().scale(radius * radius)
+            };
+            let scale = c.q_scale(d).powi(2);
+            let u = rng.range(0.0, 1.0);
+            let (x, y) = (g(Dual::var(u)), by_frame(Dual::var(u)));
+            assert!(
+                (x.v - y.v).abs() <= 1e-11 * scale * (1.0 + y.v.abs()),
+                "ray {i} u={u}: g {} vs {}",
+                x.v,
+                y.v
+            );
+            assert!(
+                (x.d - y.d).abs() <= 1e-9 * scale * (1.0 + y.d.abs()),
+                "ray {i} u={u}: g' {} vs {}",
+                x.d,
+                y.d
+            );
+            let w = 10f64.powf(rng.range(-7.0, -0.7));
+            let a = rng.range(0.0, 1.0 - w);
+            let b = a + w;
+            let tm = c.radial_g_r(o, d, Dual::var(Taylor::var(a, b)), radius);
+            let iv = c.radial_g_r(o, d, Dual::var(Interval::exact(a, b)), radius);
+            let jet = |u: Taylor| {
+                let [_, d1, d2] = c.axis_jet_r(u, o);
+                c.frame_from_jet_r(u, d1, d2)
+            };
+            let frame_tm = jet(Taylor::var(a, b));
+            for k in 0..=16 {
+                let u = a + (b - a) * k as f64 / 16.0;
+                let p = g(Dual::var(u));
+                let slack = 1e-13 * scale * (1.0 + p.v.abs() + p.d.abs());
+                let within = |e: Interval, x: f64| e.lo - slack <= x && x <= e.hi + slack;
+                for (kind, v, dv) in [
+                    ("Taylor", tm.v.enclosure(), tm.d.enclosure()),
+                    ("interval", iv.v, iv.d),
+                ] {
+                    assert!(
+                        within(v, p.v),
+                        "ray {i} {kind} [{a}, {b}] at {u}: g {}",
+                        p.v
+                    );
+                    assert!(
+                        within(dv, p.d),
+                        "ray {i} {kind} [{a}, {b}] at {u}: g' {}",
+                        p.d
+                    );
+                }
+                let f = c.frame(u);
+                for (e, x) in [(&frame_tm[1], f.n), (&frame_tm[2], f.b)] {
+                    for (ek, xk) in [(e.x, x.x), (e.y, x.y), (e.z, x.z)] {
+                        let iv = ek.enclosure();
+                        assert!(
+                            iv.lo - 1e-14 <= xk && xk <= iv.hi + 1e-14,
+                            "ray {i} [{a}, {b}] at {u}: frame component {xk} outside {iv:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }

@@ -1,11 +1,13 @@
 //! The moving frame along the axis: Frenet where the axis bends, a fixed frame where the whole
-//! segment is straight (interface.md section 1).
+//! segment is straight (interface.md section 1), and the projection frame of a fixed reference
+//! direction, which strands use to follow the fiber without spinning ([`Framing::Projected`]).
 
 use arrayvec::ArrayVec;
 use glam::DVec3;
 
+use crate::bernstein::Bernstein;
 use crate::curve::CubicBezier;
-use crate::real::{Real, V3};
+use crate::real::{Dual, Real, V3};
 use crate::roots::{Function1D, IsolateOptions, isolate_roots};
 
 /// A segment whose control points stray from the chord by at most this fraction of the chord
@@ -37,7 +39,33 @@ pub enum Framing {
     Frenet,
     /// A constant frame (a straight segment, whose Frenet frame is undefined).
     Fixed(Frame),
+    /// The projection frame of the reference direction `r`: `n` is `r` made normal to the
+    /// tangent, `n = (r - (r.t) t) / |r - (r.t) t|`, and `b = t x n`. Equivalently
+    /// `b = (a' x r) / |a' x r|`, `n = b x t`: Frenet's formula with `a''` replaced by the
+    /// constant `r`, a smooth frame wherever `r` is not parallel to `t` (see
+    /// [`Framing::projection_sine`]; [`GeneralizedCylinder::with_framing`] requires
+    /// `min |r x t| >=` [`PROJECTION_MIN_SINE`] over the segment, so it has no singular point).
+    /// It turns about `t` only as fast as the tangent's motion forces it to keep `n` near `r`;
+    /// [`Strand`](crate::Strand)s add a linear twist per segment (in the sweep's rotation) so
+    /// that it matches a rotation-minimising frame at both ends of every segment.
+    ///
+    /// [`GeneralizedCylinder::with_framing`]: crate::GeneralizedCylinder::with_framing
+    Projected(DVec3),
 }
+
+/// The smallest `min_u |r x t(u)|` (for a unit reference `r`) that a projection frame may have:
+/// below it the frame turns by up to `1 / PROJECTION_MIN_SINE` times faster than the tangent
+/// near the closest approach, and it is singular where `r` is parallel to `t`.
+pub const PROJECTION_MIN_SINE: f64 = 1e-3;
+
+/// The sine a strand's projection reference should keep from every tangent of its segment to be
+/// taken without looking further (see [`Framing::projected_for_axis`]): at `1/2` the reference
+/// stays at least 30 degrees off every tangent.
+pub(crate) const PROJECTION_GOOD_SINE: f64 = 0.5;
+
+/// How many times [`Framing::projection_sine`] may halve a piece of `[0, 1]` (pieces down to
+/// `2^-16`).
+const PROJECTION_DEPTH: u32 = 16;
 
 impl Framing {
     /// The framing interface.md prescribes: `Fixed` when the segment is straight to within
@@ -72,6 +100,116 @@ impl Framing {
             n,
             b: t.cross(n),
         }))
+    }
+
+    /// A lower bound of `min_u |r x t(u)| / |r|` over `u in [0, 1]`, the sine of the smallest
+    /// angle between the reference `r` and the tangents (0 when `r` is zero or not finite).
+    ///
+    /// `|r x a'(u)|^2 - s^2 |a'(u)|^2` is a quartic in `u`: `w = r x a'` is the quadratic Bezier
+    /// with control points `r x h_i` (`h_i` those of the hodograph `a'`), and
+    /// `|w|^2 = sum_xyz w_x^2`, `|a'|^2` likewise, products in Bernstein form. Where every
+    /// Bernstein coefficient of that quartic is non-negative so is the quartic (convex hull
+    /// property), so on a piece of `[0, 1]` `s^2 = min_k P_k / Q_k` (`P`, `Q` the coefficients of
+    /// `|w|^2` and `|a'|^2` there; 0 if a `P_k` is negative or a `Q_k` is not positive) holds
+    /// `|r x t|^2 >= s^2` on the piece. A piece is halved (de Casteljau) while that bound is
+    /// below `0.81` of the smallest of `|w|^2 / |a'|^2` at its ends and middle, at most
+    /// `PROJECTION_DEPTH` (16) times: the bound tightens quadratically with the width, and ends
+    /// within 10 % (in `s`) of the true minimum, or below it where that is tiny. Exact up to
+    /// rounding (relative `1e-15`, far below any threshold it is compared with).
+    pub fn projection_sine(axis: &CubicBezier, reference: DVec3) -> f64 {
+        Self::projection_sine_bound(axis, reference, None)
+    }
+
+    /// Whether [`Framing::projection_sine`]'s bound proves `min_u |r x t(u)| / |r| >= s`: the
+    /// same bound, with the subdivision cut short where a piece is proven (its bound reaches
+    /// `s`) or cannot be (its value at an end or the middle is below `s`).
+    pub fn projection_sine_at_least(axis: &CubicBezier, reference: DVec3, s: f64) -> bool {
+        Self::projection_sine_bound(axis, reference, Some(s * s)) >= s
+    }
+
+    /// See [`Framing::projection_sine`]; `target` (a squared sine) ends the subdivision early.
+    fn projection_sine_bound(axis: &CubicBezier, reference: DVec3, target: Option<f64>) -> f64 {
+        let r = reference.normalize_or_zero();
+        if r == DVec3::ZERO || !r.is_finite() {
+            return 0.0;
+        }
+        let [k1, _] = axis.derivative_scales();
+        let h = axis.hodograph().map(|h| h * k1);
+        let w = h.map(|h| r.cross(h));
+        let square = |v: [DVec3; 3]| -> Bernstein<5> {
+            (0..3).fold(Bernstein([0.0; 5]), |acc, k| {
+                let c = Bernstein([v[0][k], v[1][k], v[2][k]]);
+                acc.add(&c.mul(&c))
+            })
+        };
+        fn bound(p: &Bernstein<5>, q: &Bernstein<5>, depth: u32, target: Option<f64>) -> f64 {
+            let b =
+                p.0.iter()
+                    .zip(q.0.iter())
+                    .fold(f64::INFINITY, |m, (pk, qk)| {
+                        m.min(if *pk >= 0.0 && *qk > 0.0 {
+                            pk / qk
+                        } else {
+                            0.0
+                        })
+                    });
+            // The coefficients at the ends are the values there.
+            let sampled = (p.0[0] / q.0[0])
+                .min(p.0[4] / q.0[4])
+                .min(p.eval(0.5) / q.eval(0.5));
+            let settled = match target {
+                Some(t) => b >= t || !(sampled >= t),
+                None => !(b < 0.81 * sampled),
+            };
+            if settled || depth == PROJECTION_DEPTH {
+                return b;
+            }
+            let ((p0, p1), (q0, q1)) = (p.split(0.5), q.split(0.5));
+            let left = bound(&p0, &q0, depth + 1, target);
+            if target.is_some_and(|t| !(left >= t)) {
+                return left;
+            }
+            left.min(bound(&p1, &q1, depth + 1, target))
+        }
+        bound(&square(w), &square(h), 0, target)
+            .clamp(0.0, 1.0)
+            .sqrt()
+    }
+
+    /// A projection framing ([`Framing::Projected`]) for `axis` whose reference keeps away from
+    /// every tangent: the first of `preferred` whose [`Framing::projection_sine`] is at least
+    /// `1/2` (a strand passes the rotation-minimising normals at the segment's middle and ends,
+    /// which make the projection frame close to that frame), otherwise the best of `preferred`,
+    /// the normals of the planes through pairs of the hodograph's control points (a nearly
+    /// planar segment's tangents all lie close to that plane) and the 13 directions of the
+    /// cube's faces, edges and corners. `None` if even the best stays within
+    /// [`PROJECTION_MIN_SINE`] of some tangent.
+    pub fn projected_for_axis(axis: &CubicBezier, preferred: &[DVec3]) -> Option<Framing> {
+        let sine = |r: DVec3| Framing::projection_sine(axis, r);
+        if let Some(&r) = preferred
+            .iter()
+            .find(|&&r| Framing::projection_sine_at_least(axis, r, PROJECTION_GOOD_SINE))
+        {
+            return Some(Framing::Projected(r.normalize()));
+        }
+        let [h0, h1, h2] = axis.hodograph();
+        let mut candidates: Vec<DVec3> = preferred.to_vec();
+        candidates.extend([h0.cross(h1), h1.cross(h2), h0.cross(h2)]);
+        for x in -1..=1 {
+            for y in -1..=1 {
+                for z in 0..=1 {
+                    // One of each antipodal pair: z > 0, or z = 0 and (y > 0, or y = 0, x > 0).
+                    if z == 1 || y == 1 || (y == 0 && x == 1) {
+                        candidates.push(DVec3::new(x as f64, y as f64, z as f64));
+                    }
+                }
+            }
+        }
+        let (best, s) = candidates
+            .into_iter()
+            .map(|r| (r, sine(r)))
+            .fold((DVec3::ZERO, 0.0), |b, c| if c.1 > b.1 { c } else { b });
+        (s >= PROJECTION_MIN_SINE).then(|| Framing::Projected(best.normalize()))
     }
 }
 
@@ -174,15 +312,33 @@ pub(crate) fn frenet_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<
     out
 }
 
+/// The projection frame ([`Framing::Projected`]) from `a'` (any positive multiple of it) and the
+/// reference `r`: `t = a'/|a'|`, `b = (a' x r)/|a' x r|`, `n = b x t`.
+///
+/// `n` is the component of `r` normal to `t`, normalised: `(a' x r) x a' = |a'|^2 r - (a'.r) a'`.
+#[inline(always)]
+pub(crate) fn projected_frame<T: Real>(d1: V3<T>, r: DVec3) -> [V3<T>; 3] {
+    let c = d1.cross(V3::cst(r));
+    let t = d1.divided(d1.norm2().sqrt());
+    let b = c.divided(c.norm2().sqrt());
+    [t, b.cross(t), b]
+}
+
 /// The frame `(t, n, b)` at `u` over any [`Real`].
 ///
 /// Frenet: `t = a'/|a'|`, `b = (a' x a'')/|a' x a''|`, `n = b x t`. Where `a' x a''` vanishes
 /// at an isolated point (an inflection), the frame is the limit from the right (from the left
 /// at `u = 1`); for point-symmetric sections both limits give the same surface.
+/// Projected: `t = a'/|a'|`, `b = (a' x r)/|a' x r|`, `n = b x t` at `u` (`a'` scaled to unit
+/// size, so no product underflows).
 #[inline]
 pub fn frame_r<T: Real>(axis: &CubicBezier, framing: &Framing, u: T) -> [V3<T>; 3] {
     match framing {
         Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
+        Framing::Projected(r) => {
+            let [k1, _] = axis.derivative_scales();
+            projected_frame(axis.d1_r(u).scaled(T::cst(k1)), *r)
+        }
         Framing::Frenet => {
             let u = u + T::cst(frenet_shift(axis, u.value()));
             let [k1, k2] = axis.derivative_scales();
@@ -209,6 +365,10 @@ pub struct FrameAt {
     pub curvature: f64,
     /// The torsion `tau = (a' x a'') . a''' / |a' x a''|^2` (0 for a fixed frame).
     pub torsion: f64,
+    /// `(t'(u), n'(u), b'(u))` where they do not follow from the Frenet-Serret formulas (a
+    /// projected frame: by forward-mode differentiation of [`frame_r`]); `None` for Frenet and
+    /// fixed frames. [`FrameAt::derivatives`] returns them.
+    pub rates: Option<[DVec3; 3]>,
 }
 
 impl FrameAt {
@@ -227,7 +387,34 @@ impl FrameAt {
                 speed,
                 curvature: 0.0,
                 torsion: 0.0,
+                rates: None,
             },
+            Framing::Projected(_) => {
+                // The curve's own curvature and torsion at u (the frame is not Frenet's, but
+                // they describe the axis all the same), scaled as below.
+                let [k1, k2] = axis.derivative_scales();
+                let d1 = axis.d1(u) * k1;
+                let c = d1.cross(axis.d2(u) * k2);
+                let c2 = c.length_squared();
+                let torsion = if c2 > 0.0 {
+                    k1 * k2 * c.dot(axis.third_derivative()) / c2
+                } else {
+                    0.0
+                };
+                // n'(u), b'(u) exactly: the frame's formula evaluated on dual numbers.
+                let [dt, dn, db] = frame_r(axis, framing, Dual::var(u));
+                FrameAt {
+                    frame,
+                    speed,
+                    curvature: c2.sqrt() * k1 * k1 / (k2 * d1.length().powi(3)),
+                    torsion,
+                    rates: Some([
+                        DVec3::new(dt.x.d, dt.y.d, dt.z.d),
+                        DVec3::new(dn.x.d, dn.y.d, dn.z.d),
+                        DVec3::new(db.x.d, db.y.d, db.z.d),
+                    ]),
+                }
+            }
             Framing::Frenet => {
                 // Curvature and torsion where the frame was taken (see `frenet_shift`).
                 // With a' and a'' scaled by k1 and k2 (see `derivative_scales`) so no product
@@ -248,6 +435,7 @@ impl FrameAt {
                     speed,
                     curvature: c2.sqrt() * k1 * k1 / (k2 * d1.length().powi(3)),
                     torsion,
+                    rates: None,
                 }
             }
         }
@@ -255,8 +443,17 @@ impl FrameAt {
 
     /// `(t'(u), n'(u), b'(u))` by the Frenet-Serret formulas with respect to `u`
     /// (seed 2.4, corrected by errata 2: the arc-length formulas times the speed `|a'(u)|`):
-    /// `t' = |a'| kappa n`, `n' = |a'| (-kappa t + tau b)`, `b' = -|a'| tau n`.
+    /// `t' = |a'| kappa n`, `n' = |a'| (-kappa t + tau b)`, `b' = -|a'| tau n`; for a projected
+    /// frame [`FrameAt::rates`].
+    ///
+    /// (For the projection frame, `b = C/|C|` with `C = a' x r`, so
+    /// `b' = (C' - (C'.b) b)/|C|` with `C' = a'' x r`, and `n = b x t` gives
+    /// `n' = b' x t + b x t'`; `t' = |a'| kappa n_F` with Frenet's normal `n_F`. The dual numbers
+    /// evaluate exactly these.)
     pub fn derivatives(&self) -> [DVec3; 3] {
+        if let Some(r) = self.rates {
+            return r;
+        }
         let (s, k, tau) = (self.speed, self.curvature, self.torsion);
         let Frame { t, n, b } = self.frame;
         [s * k * n, s * (-k * t + tau * b), -s * tau * n]
@@ -478,5 +675,180 @@ mod tests {
         let sw = frenet_switches(&root, -1e-11, 1.0 + 1e-11);
         assert_eq!(sw.len(), 1, "{sw:?}");
         assert!(sw[0] > 0.0 && sw[0] < 1e-6, "{sw:?}");
+    }
+
+    /// A planar S-curve bent slightly out of its plane: the Frenet frame turns by nearly half a
+    /// turn within a short stretch around the near-inflection at `u = 1/2`.
+    fn near_inflection() -> CubicBezier {
+        CubicBezier::new([
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(2.0, -1.0, 0.02),
+            DVec3::new(3.0, 0.0, 0.0),
+        ])
+    }
+
+    /// The projection frame is orthonormal and right-handed, and `n` is the reference made
+    /// normal to `t` (checked against `r - (r.t) t` normalised, the other form of the formula),
+    /// at every sample of three axes, with references chosen to keep away from their tangents.
+    #[test]
+    fn projected_frame_is_orthonormal_and_follows_the_reference() {
+        let straight = CubicBezier::new([0.0, 1.0, 2.0, 3.0].map(|x| DVec3::new(x, 0.1 * x, 0.0)));
+        for (name, c, r) in [
+            ("helix", helix_like(), DVec3::new(0.3, -0.8, 0.5)),
+            ("S", near_inflection(), DVec3::Z),
+            ("straight", straight, DVec3::new(0.2, 0.4, -1.0)),
+        ] {
+            let framing = Framing::Projected(r);
+            assert!(
+                Framing::projection_sine(&c, r) > 0.1,
+                "{name}: test reference too close to a tangent"
+            );
+            for i in 0..=40 {
+                let u = i as f64 / 40.0;
+                let f = FrameAt::new(&c, &framing, u).frame;
+                for (k, v) in [("t", f.t), ("n", f.n), ("b", f.b)] {
+                    assert!(
+                        (v.length() - 1.0).abs() < 1e-14,
+                        "{name}: {k} not unit at {u}"
+                    );
+                }
+                assert!(f.t.dot(f.n).abs() < 1e-14, "{name}: t.n at {u}");
+                assert!(
+                    (f.n.cross(f.b) - f.t).length() < 1e-14,
+                    "{name}: n x b = t at {u}"
+                );
+                assert!(
+                    (f.t - c.d1(u).normalize()).length() < 1e-14,
+                    "{name}: t at {u}"
+                );
+                let rn = r.normalize();
+                let want = (rn - rn.dot(f.t) * f.t).normalize();
+                assert!(
+                    (f.n - want).length() < 1e-14,
+                    "{name}: n at {u}: {:?} vs {want:?}",
+                    f.n
+                );
+            }
+        }
+    }
+
+    /// `n'(u)`, `b'(u)` (and `t'`) of the projection frame, from dual numbers, equal central
+    /// differences of the frame (step 1e-6: truncation ~1e-12 times the third derivative,
+    /// rounding ~1e-16 / 1e-6; 1e-7 relative leaves a wide margin), also where the axis is
+    /// nearly inflected and its speed is far from 1; and they are not the Frenet-Serret ones.
+    #[test]
+    fn projected_frame_derivatives_match_finite_differences() {
+        let h = 1e-6;
+        for (name, c, r) in [
+            ("helix", helix_like(), DVec3::new(0.3, -0.8, 0.5)),
+            ("S", near_inflection(), DVec3::Z),
+        ] {
+            let framing = Framing::Projected(r);
+            let mut differs = 0.0f64;
+            for i in 1..40 {
+                let u = i as f64 / 40.0;
+                let at = FrameAt::new(&c, &framing, u);
+                let (p, m) = (
+                    FrameAt::new(&c, &framing, u + h).frame,
+                    FrameAt::new(&c, &framing, u - h).frame,
+                );
+                let fd = [
+                    (p.t - m.t) / (2.0 * h),
+                    (p.n - m.n) / (2.0 * h),
+                    (p.b - m.b) / (2.0 * h),
+                ];
+                let an = at.derivatives();
+                for k in 0..3 {
+                    let scale = an[k].length().max(1.0);
+                    assert!(
+                        (fd[k] - an[k]).length() < 1e-7 * scale,
+                        "{name} u={u} component {k}: fd {:?} exact {:?}",
+                        fd[k],
+                        an[k]
+                    );
+                }
+                // The Frenet-Serret formula with this frame would be wrong: n' has a part
+                // along b that is the projection frame's own turn, not the torsion's.
+                let frenet_like = FrameAt { rates: None, ..at }.derivatives();
+                differs = differs.max((frenet_like[1] - an[1]).length());
+            }
+            assert!(
+                differs > 1e-2,
+                "{name}: the projected rates are their own ({differs})"
+            );
+        }
+    }
+
+    /// The certified sine is a lower bound of the sampled `min |r x t|` (20001 samples) and
+    /// tight to 10 % where that is not small; it is (close to) 0 for a reference along a
+    /// tangent, and 0 for a zero or non-finite reference.
+    #[test]
+    fn projection_sine_bounds_the_smallest_angle_to_the_tangents() {
+        let mut rng = crate::test_rng::Lcg(17);
+        let mut tight = 0;
+        for _ in 0..200 {
+            let c = CubicBezier::new([
+                DVec3::ZERO,
+                rng.unit(),
+                rng.unit() + DVec3::X,
+                rng.unit() + 2.0 * DVec3::X,
+            ]);
+            if c.min_speed() < 1e-3 {
+                continue;
+            }
+            let r = rng.unit();
+            let bound = Framing::projection_sine(&c, r);
+            let sampled = (0..=20000)
+                .map(|i| r.cross(c.d1(i as f64 / 20000.0).normalize()).length())
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                bound <= sampled + 1e-12,
+                "bound {bound} above the sampled {sampled} for {c:?}, r {r}"
+            );
+            if sampled > 0.2 {
+                assert!(
+                    bound >= 0.9 * sampled,
+                    "bound {bound} loose against {sampled} for {c:?}, r {r}"
+                );
+                tight += 1;
+            }
+            let along = c.d1(0.37).normalize();
+            assert!(
+                Framing::projection_sine(&c, along) < 1e-6,
+                "along a tangent"
+            );
+        }
+        assert!(tight > 50, "enough well-separated cases ({tight})");
+        assert_eq!(
+            Framing::projection_sine(&helix_like(), DVec3::ZERO),
+            0.0,
+            "zero reference"
+        );
+        assert_eq!(
+            Framing::projection_sine(&helix_like(), DVec3::NAN),
+            0.0,
+            "NaN reference"
+        );
+    }
+
+    /// A preferred reference far enough from the tangents is taken as it is; one along a tangent
+    /// is replaced by one at least 30 degrees off every tangent (here: a planar S-curve, whose
+    /// tangents sweep through about 110 degrees, gets its plane's normal or as good).
+    #[test]
+    fn projected_for_axis_keeps_the_reference_off_the_tangents() {
+        let c = near_inflection();
+        let good = DVec3::new(0.1, 0.2, 1.0);
+        assert_eq!(
+            Framing::projected_for_axis(&c, &[good]),
+            Some(Framing::Projected(good.normalize())),
+            "a good preferred reference"
+        );
+        let bad = c.d1(0.5).normalize();
+        let Some(Framing::Projected(r)) = Framing::projected_for_axis(&c, &[bad]) else {
+            panic!("a reference must be found");
+        };
+        let s = Framing::projection_sine(&c, r);
+        assert!(s >= 0.5, "replacement {r} keeps sin {s}");
     }
 }

@@ -3,7 +3,8 @@
 //! A generalized cylinder is the solid swept by a closed 2D cross section `cs(v)` along a 3D
 //! axis `a(u)` under an invertible sweeping rule `s(., u)` that scales and rotates the section
 //! (Hsu and Chelberg 1994). Here the axis is a cubic Bezier curve, the frame is Frenet's (fixed
-//! for a straight axis), the section a unit circle or a closed cubic Bezier loop, and the
+//! for a straight axis; strands use a projection frame that follows the fiber without
+//! spinning), the section a unit circle or a closed cubic Bezier loop, and the
 //! hair rule scales by linearly varying radii and rotates by a linearly varying angle: an
 //! elliptical, twisted, tapering fiber.
 //!
@@ -37,5 +38,5 @@ pub use cylinder::{Aabb, FiberSpec, GeneralizedCylinder, GeometryError, Hit, Par
 pub use frame::{Frame, FrameAt, Framing};
 pub use intersect::Method;
 pub use section::{BezierLoop, CrossSection, Section, UnitCircle};
-pub use strand::Strand;
+pub use strand::{Strand, StrandFraming, StrandSegment};
 pub use sweep::{HairSweep, SweepRule};

@@ -53,7 +53,9 @@ use std::f64::consts::{PI, TAU};
 use std::time::Instant;
 
 use common::*;
-use gencyl::{BezierLoop, FiberSpec, Hit, Method, Part, Ray, Section};
+use gencyl::{
+    BezierLoop, FiberSpec, Framing, Hit, Method, Part, Ray, Section, Strand, StrandFraming,
+};
 use glam::{DVec2, DVec3};
 
 // ---------------------------------------------------------------------------------------------
@@ -453,7 +455,7 @@ fn oracle_trilobal_loop() {
     run_case(
         &case("trilobal"),
         11,
-        &[(Method::Auto, 200), (Method::General, 200)],
+        &[(Method::Auto, 1000), (Method::General, 1000)],
     );
 }
 
@@ -462,7 +464,7 @@ fn oracle_kidney_loop_nocaps() {
     run_case(
         &case("kidney-nocaps"),
         12,
-        &[(Method::Auto, 200), (Method::General, 200)],
+        &[(Method::Auto, 1000), (Method::General, 1000)],
     );
 }
 
@@ -471,7 +473,7 @@ fn oracle_circle_approximation_loop() {
     run_case(
         &case("circle-approx"),
         13,
-        &[(Method::Auto, 200), (Method::General, 200)],
+        &[(Method::Auto, 1000), (Method::General, 1000)],
     );
 }
 
@@ -1046,4 +1048,245 @@ fn reproducers_from_random_runs() {
         "{table}\n{}",
         failures.join("\n\n=====\n\n")
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Strand segments with the default (rotation-minimising) framing: a projection frame of a
+// reference `r`, re-derived by the oracle (`Oracle::new_projected`), and the strand's linear
+// frame twist in the sweep's rotation (so the oracle sees a plain hair sweep).
+
+/// A curly strand: points on a helix of radius 0.25 about -y, 1.1 rad apart, drifting in x.
+fn curly_points() -> Vec<DVec3> {
+    (0..12)
+        .map(|k| {
+            let a = 1.1 * k as f64;
+            v3(
+                0.25 * a.cos() + 0.02 * (k * k) as f64,
+                -0.18 * k as f64,
+                0.25 * a.sin(),
+            )
+        })
+        .collect()
+}
+
+/// A wavy, nearly planar strand whose axis changes its bending direction at `x = 1.348`, the
+/// middle of segment 4: a near-inflection, where the Frenet frame spins half round.
+fn wavy_points() -> Vec<DVec3> {
+    (0..13)
+        .map(|k| {
+            let x = 0.3 * k as f64;
+            v3(x, 0.35 * (2.33 * x).sin(), 0.04 * (0.7 * x).sin())
+        })
+        .collect()
+}
+
+/// Segment `index` of the strand through `points` (default framing) as a capped oracle case,
+/// and its projection reference.
+fn strand_case(
+    name: &'static str,
+    points: &[DVec3],
+    ellipticity: f64,
+    twist: [f64; 2],
+    loop_points: Option<Vec<DVec2>>,
+    index: usize,
+) -> (Case, DVec3) {
+    let section = loop_points.as_ref().map_or(Section::default(), |p| {
+        Section::Loop(BezierLoop::new(p).unwrap())
+    });
+    let strand = Strand {
+        points: Strand::interpolating_control_points(points),
+        radius: [0.045, 0.03],
+        ellipticity,
+        twist,
+        section: section.clone(),
+    };
+    let segs = strand.segments(StrandFraming::RotationMinimizing).unwrap();
+    let cyl = &segs[index].cylinder;
+    let Framing::Projected(r) = *cyl.framing() else {
+        panic!("{name}: the default framing is projected");
+    };
+    let sweep = cyl.sweep();
+    let spec = FiberSpec {
+        bezier: cyl.axis().points,
+        major_radius: sweep.major,
+        minor_radius: sweep.minor,
+        rotation: sweep.rotation,
+        caps: true,
+        normal_hint: None,
+        section,
+    };
+    (
+        Case {
+            name,
+            spec,
+            loop_points,
+        },
+        r,
+    )
+}
+
+fn strand_cases() -> Vec<(Case, DVec3)> {
+    vec![
+        strand_case("strand-curly", &curly_points(), 0.5, [0.3, 2.5], None, 5),
+        strand_case("strand-wavy", &wavy_points(), 0.45, [0.0, 0.0], None, 4),
+        strand_case(
+            "strand-trilobal",
+            &wavy_points(),
+            0.8,
+            [0.0, 1.0],
+            Some(trilobal_points()),
+            4,
+        ),
+        // Segment 1 lies on the line through the first four points: straight.
+        strand_case(
+            "strand-straight",
+            &[
+                v3(0.0, 0.0, 0.0),
+                v3(0.0, 0.3, 0.1),
+                v3(0.0, 0.6, 0.2),
+                v3(0.0, 0.9, 0.3),
+                v3(0.2, 1.1, 0.2),
+                v3(0.5, 1.2, 0.0),
+            ],
+            0.5,
+            [0.0, 2.0],
+            None,
+            1,
+        ),
+        strand_case("strand-round", &curly_points(), 1.0, [0.0, 0.0], None, 5),
+    ]
+}
+
+/// The oracle's projection frame is orthonormal, right-handed, `t` along `a'`, `n` the
+/// reference's part normal to `t` (`n.r > 0`, `b.r = 0`), smooth (no seams), and agrees with
+/// the library's frame (computed as `b = (a' x r)/|a' x r|`, `n = b x t`) to 1e-12; on the
+/// wavy segment the Frenet frame turns by more than 2 rad where this one turns by less than
+/// 0.3 (the near-inflection is what the framing is for).
+#[test]
+fn oracle_self_check_projected_frame() {
+    for (c, r) in strand_cases() {
+        let o = Oracle::new_projected(&c.spec, c.loop_points.as_deref(), r);
+        let lib = c.spec.build_framed(Framing::Projected(r)).unwrap();
+        assert!(o.seams.is_empty() && o.straight.is_none(), "{}", c.name);
+        let (mut turn, mut frenet_turn) = (0.0, 0.0);
+        let frenet = Oracle::new(&c.spec, c.loop_points.as_deref());
+        for i in 0..=400 {
+            let u = i as f64 / 400.0;
+            let [t, n, b] = o.frame(u);
+            assert!(
+                (t - bez_d1(&o.p, u).normalize()).length() < 1e-15,
+                "{} {u}: t",
+                c.name
+            );
+            assert!(
+                (n.length() - 1.0).abs() < 1e-14 && n.dot(t).abs() < 1e-14,
+                "{} {u}: n",
+                c.name
+            );
+            assert!((t.cross(n) - b).length() < 1e-14, "{} {u}: b", c.name);
+            assert!(
+                n.dot(r) > 0.0 && b.dot(r).abs() < 1e-14,
+                "{} {u}: n from r",
+                c.name
+            );
+            let f = lib.frame(u);
+            assert!(
+                (f.n - n).length() < 1e-12 && (f.b - b).length() < 1e-12,
+                "{} {u}: the library's frame {f:?} vs the oracle's {n} {b}",
+                c.name
+            );
+            if i > 0 {
+                let (p, q) = (o.frame(u - 1.0 / 400.0), frenet.frame(u - 1.0 / 400.0));
+                turn += p[1].angle_between(n);
+                frenet_turn += q[1].angle_between(frenet.frame(u)[1]);
+            }
+        }
+        if c.name == "strand-wavy" {
+            assert!(
+                frenet_turn > 2.0 && turn < 0.3,
+                "{}: Frenet turns {frenet_turn}, the projection frame {turn}",
+                c.name
+            );
+        }
+    }
+}
+
+// The projected strand cases cost about 0.5 ms per ray for the oracle and far less for the
+// library, so they run more rays than the Frenet cases above.
+
+/// An elliptical, twisted, tapering segment of a curly strand (each segment turns by about a
+/// radian) with the default framing.
+#[test]
+fn oracle_strand_curly_ellipse() {
+    let (c, r) = strand_cases().swap_remove(0);
+    run_case_projected(
+        &c,
+        r,
+        21,
+        &[
+            (Method::Auto, 3000),
+            (Method::Radial, 2000),
+            (Method::General, 1000),
+        ],
+    );
+}
+
+/// An elliptical segment of a wavy strand through its near-inflection, default framing.
+#[test]
+fn oracle_strand_wavy_ellipse() {
+    let (c, r) = strand_cases().swap_remove(1);
+    run_case_projected(
+        &c,
+        r,
+        22,
+        &[
+            (Method::Auto, 3000),
+            (Method::Radial, 2000),
+            (Method::General, 1000),
+        ],
+    );
+}
+
+/// A round segment of the curly strand: the round method is frame-free but for the section
+/// angle `v` of its hits, which the oracle checks through `Gamma(u, v)` in the projection
+/// frame.
+#[test]
+fn oracle_strand_curly_round() {
+    let (c, r) = strand_cases().swap_remove(4);
+    run_case_projected(
+        &c,
+        r,
+        25,
+        &[
+            (Method::Auto, 2000),
+            (Method::Round, 2000),
+            (Method::Radial, 1000),
+            (Method::General, 500),
+        ],
+    );
+}
+
+/// A straight elliptical, twisted segment of a strand, default framing (a projection frame,
+/// where `[[cylinder]]` tables take the fixed frame of interface.md).
+#[test]
+fn oracle_strand_straight_ellipse() {
+    let (c, r) = strand_cases().swap_remove(3);
+    run_case_projected(
+        &c,
+        r,
+        24,
+        &[
+            (Method::Auto, 2000),
+            (Method::Radial, 1000),
+            (Method::General, 1000),
+        ],
+    );
+}
+
+/// A trilobal segment of the wavy strand through its near-inflection, default framing: the
+/// Frenet frame would turn the lobes half round there; the projection frame does not.
+#[test]
+fn oracle_strand_wavy_trilobal() {
+    let (c, r) = strand_cases().swap_remove(2);
+    run_case_projected(&c, r, 23, &[(Method::Auto, 1000), (Method::General, 1000)]);
 }

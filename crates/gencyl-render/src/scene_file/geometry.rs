@@ -6,7 +6,9 @@ use std::ops::Range;
 use std::path::Path;
 
 use gencyl::section::ProfileError;
-use gencyl::{BezierLoop, FiberSpec, GeneralizedCylinder, GeometryError, Section, Strand};
+use gencyl::{
+    BezierLoop, FiberSpec, GeneralizedCylinder, GeometryError, Section, Strand, StrandFraming,
+};
 use glam::{DQuat, DVec2, DVec3};
 use rayon::prelude::*;
 use serde::Deserialize;
@@ -40,6 +42,7 @@ pub(super) struct RawStrand {
     pub(super) radius: Spanned<Array<f64, 2>>,
     pub(super) ellipticity: Option<Spanned<f64>>,
     pub(super) twist: Option<Spanned<Array<f64, 2>>>,
+    pub(super) frame: Option<Spanned<String>>,
     pub(super) profile: Option<Spanned<Vec<Array<f64, 2>>>>,
     pub(super) material: Option<Spanned<String>>,
     pub(super) transform: Option<Spanned<RawTransform>>,
@@ -52,6 +55,7 @@ pub(super) struct RawHair {
     pub(super) radius: Option<Spanned<f64>>,
     pub(super) ellipticity: Option<Spanned<f64>>,
     pub(super) twist: Option<Spanned<Array<f64, 2>>>,
+    pub(super) frame: Option<Spanned<String>>,
     pub(super) material: Option<Spanned<String>>,
     pub(super) transform: Option<Spanned<RawTransform>>,
 }
@@ -260,6 +264,24 @@ pub(super) fn strand_shape(
     Ok((e, tw))
 }
 
+/// The `frame` key of strands and hair files: `"minimal"` (the default; also
+/// `"rotation-minimizing"`, `"rotation-minimising"`, `"rmf"`) or `"frenet"`.
+pub(super) fn strand_framing(frame: &Option<Spanned<String>>) -> Result<StrandFraming, Problem> {
+    let Some(f) = frame else {
+        return Ok(StrandFraming::default());
+    };
+    match f.get_ref().as_str() {
+        "minimal" | "rotation-minimizing" | "rotation-minimising" | "rmf" => {
+            Ok(StrandFraming::RotationMinimizing)
+        }
+        "frenet" => Ok(StrandFraming::Frenet),
+        other => Err((
+            f.span(),
+            format!("frame must be \"minimal\" or \"frenet\", got {other:?}"),
+        )),
+    }
+}
+
 /// Checks one `[[strand]]` table and builds its segments.
 pub(super) fn build_strand(
     s: &RawStrand,
@@ -301,6 +323,7 @@ pub(super) fn build_strand(
         ));
     }
     let (ellipticity, twist) = strand_shape(&s.ellipticity, &s.twist)?;
+    let framing = strand_framing(&s.frame)?;
     let strand = Strand {
         points: if through {
             Strand::interpolating_control_points(&points)
@@ -313,7 +336,7 @@ pub(super) fn build_strand(
         section: section(&s.profile)?,
     };
     strand
-        .cylinders()
+        .cylinders_with(framing)
         .map_err(|(seg, e)| (pts.span(), format!("segment {seg}: {e}")))
 }
 
@@ -343,9 +366,24 @@ pub(super) fn build_hair(h: &RawHair, base: &Path) -> Result<Vec<GeneralizedCyli
         None => None,
     };
     let (ellipticity, twist) = strand_shape(&h.ellipticity, &h.twist)?;
+    let framing = strand_framing(&h.frame)?;
     let xf = transform(&h.transform)?;
-    hair_cylinders(&base.join(file), file, radius, ellipticity, twist, xf)
-        .map_err(|e| (h.file.span(), e))
+    let shape = StrandShape {
+        radius,
+        ellipticity,
+        twist,
+        framing,
+    };
+    hair_cylinders(&base.join(file), file, shape, xf).map_err(|e| (h.file.span(), e))
+}
+
+/// How a hair file's strands are shaped and framed.
+pub(super) struct StrandShape {
+    /// The radius at root and tip; `None`: half the file's thickness.
+    pub(super) radius: Option<f64>,
+    pub(super) ellipticity: f64,
+    pub(super) twist: [f64; 2],
+    pub(super) framing: StrandFraming,
 }
 
 /// The cylinders of a hair file's strands (through the file's points), radius from the
@@ -353,11 +391,15 @@ pub(super) fn build_hair(h: &RawHair, base: &Path) -> Result<Vec<GeneralizedCyli
 pub(super) fn hair_cylinders(
     path: &Path,
     file: &str,
-    radius: Option<f64>,
-    ellipticity: f64,
-    twist: [f64; 2],
+    shape: StrandShape,
     xf: Similarity,
 ) -> Result<Vec<GeneralizedCylinder>, String> {
+    let StrandShape {
+        radius,
+        ellipticity,
+        twist,
+        framing,
+    } = shape;
     let bytes = std::fs::read(path).map_err(|e| format!("cannot read {file}: {e}"))?;
     let hair = parse_hair(&bytes, file).map_err(|e| e.to_string())?;
     let built: Vec<_> = hair
@@ -372,7 +414,7 @@ pub(super) fn hair_cylinders(
             s.radius = s.radius.map(|r| r * xf.scale);
             s.ellipticity = ellipticity;
             s.twist = twist;
-            s.cylinders()
+            s.cylinders_with(framing)
                 .map_err(|(seg, e)| format!("{file}: strand {i}, segment {seg}: {e}"))
         })
         .collect();
@@ -393,8 +435,13 @@ impl SceneDescription {
         {
             return Err(format!("the radius must be positive and finite, got {r}"));
         }
-        let cylinders =
-            hair_cylinders(path, &name, radius, 1.0, [0.0, 0.0], Similarity::default())?;
+        let shape = StrandShape {
+            radius,
+            ellipticity: 1.0,
+            twist: [0.0, 0.0],
+            framing: StrandFraming::default(),
+        };
+        let cylinders = hair_cylinders(path, &name, shape, Similarity::default())?;
         let materials = Materials::new(&BTreeMap::new()).map_err(|(_, e)| e)?;
         let fiber = materials.index(&None, FIBER_MATERIAL).map_err(|(_, e)| e)?;
         Ok(SceneDescription {

@@ -460,3 +460,69 @@ fn hair_files_in_scenes_are_read_relative_to_the_scene() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A strand's `frame` key: without it (or with `"minimal"`, `"rmf"`, ...) the segments get the
+/// rotation-minimising framing (projection frames, twist folded into the sweep's rotation), with
+/// `"frenet"` the Frenet frames of interface.md (as `[[cylinder]]` tables always do), the same
+/// in a `[[hair]]` table; any other value is an error at the value.
+#[test]
+fn strand_frame_key_chooses_the_framing() {
+    let strand = "[[strand]]\npoints = [[0, 0, 0], [0, 1, 0.2], [0.5, 2, 0], [0, 3, 0.5]]\nradius = [0.05, 0.02]\nellipticity = 0.5\n";
+    let framings = |src: &str| -> Vec<gencyl::Framing> {
+        SceneDescription::parse(src, "s.toml")
+            .unwrap()
+            .cylinders
+            .iter()
+            .map(|c| *c.framing())
+            .collect()
+    };
+    let projected = |f: &[gencyl::Framing]| {
+        f.len() == 3 && f.iter().all(|f| matches!(f, gencyl::Framing::Projected(_)))
+    };
+    assert!(projected(&framings(strand)), "default: rotation-minimising");
+    for name in [
+        "minimal",
+        "rotation-minimizing",
+        "rotation-minimising",
+        "rmf",
+    ] {
+        let f = framings(&format!("{strand}frame = \"{name}\"\n"));
+        assert!(projected(&f), "frame = {name:?}: {f:?}");
+    }
+    assert_eq!(
+        framings(&format!("{strand}frame = \"frenet\"\n")),
+        vec![gencyl::Framing::Frenet; 3],
+        "frame = \"frenet\""
+    );
+    expect_errors(&[(
+        format!("{strand}frame = \"bishop\"\n"),
+        "s.toml:5:9: frame must be \"minimal\" or \"frenet\", got \"bishop\"",
+    )]);
+
+    let dir = std::env::temp_dir().join(format!("gencyl-hair-frame-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let strands = vec![vec![
+        DVec3::ZERO,
+        DVec3::new(0.0, 1.0, 0.2),
+        DVec3::new(0.3, 2.0, 0.0),
+    ]];
+    let bytes = crate::formats::hair::write_hair(&strands, None, "one strand");
+    std::fs::write(dir.join("one.hair"), &bytes).unwrap();
+    let scene = dir.join("scene.toml");
+    for (frame, want_projected) in [("", true), ("frame = \"frenet\"\n", false)] {
+        std::fs::write(
+            &scene,
+            format!("[[hair]]\nfile = \"one.hair\"\nradius = 0.01\nellipticity = 0.5\n{frame}"),
+        )
+        .unwrap();
+        let d = SceneDescription::load(&scene).unwrap();
+        assert_eq!(d.cylinders.len(), 2, "two segments");
+        assert!(
+            d.cylinders
+                .iter()
+                .all(|c| matches!(c.framing(), gencyl::Framing::Projected(_)) == want_projected),
+            "hair file with {frame:?}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -15,7 +15,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::f64::consts::{PI, TAU};
 use std::time::Instant;
 
-use gencyl::{FiberSpec, GeneralizedCylinder, Hit, Method, Part, Ray, Section};
+use gencyl::{FiberSpec, Framing, GeneralizedCylinder, Hit, Method, Part, Ray, Section};
 use glam::{DVec2, DVec3};
 
 // ---------------------------------------------------------------------------------------------
@@ -465,6 +465,9 @@ pub struct Oracle {
     pub seams: Vec<f64>,
     /// The tolerances of the checks (see [`Tol`]).
     pub tol: Tol,
+    /// The reference direction of a projection frame ([`Oracle::new_projected`]), if the fiber
+    /// has one instead of the Frenet or straight-segment frame.
+    pub projected: Option<DVec3>,
 }
 
 /// Parameters in (0, 1) where the Frenet binormal `a' x a'' / |a' x a''|` jumps: inflections of
@@ -587,6 +590,7 @@ impl Oracle {
                 normal: NORMAL_TOL,
                 bisect: 0.0,
             },
+            projected: None,
         };
         // Sub-boxes: the Bezier restricted to [u0, u1] has control points a(u0),
         // a(u0) + (u1-u0)/3 a'(u0), a(u1) - (u1-u0)/3 a'(u1), a(u1); the arc lies in their hull.
@@ -651,8 +655,25 @@ impl Oracle {
         bez(&self.p, u)
     }
 
+    /// The same fiber with the projection frame of the reference `r` (the framing strands use):
+    /// `t = a'/|a'|`, `n` the part of `r` normal to `t`, `n = (r - (r.t) t)/|r - (r.t) t|`, and
+    /// `b = t x n`, on straight and curved axes alike; smooth (no seams) as long as `r` is
+    /// never parallel to `t`.
+    pub fn new_projected(spec: &FiberSpec, loop_points: Option<&[DVec2]>, r: DVec3) -> Oracle {
+        let mut o = Oracle::new(spec, loop_points);
+        o.straight = None;
+        o.seams = Vec::new();
+        o.projected = Some(r);
+        o
+    }
+
     /// `(t, n, b)` at `u`.
     pub fn frame(&self, u: f64) -> [DVec3; 3] {
+        if let Some(r) = self.projected {
+            let t = bez_d1(&self.p, u).normalize();
+            let n = (r - r.dot(t) * t).normalize();
+            return [t, n, t.cross(n)];
+        }
         if let Some(f) = self.straight {
             return f;
         }
@@ -1602,6 +1623,34 @@ pub fn run_case(case: &Case, seed: u64, runs: &[(Method, usize)]) {
     run_rays(case, &o, &rays, &runs);
 }
 
+/// [`run_case`] for a fiber with a projection frame of reference `r`: the oracle is
+/// [`Oracle::new_projected`], the library's cylinder `case.spec.build_framed(Projected(r))`.
+pub fn run_case_projected(case: &Case, r: DVec3, seed: u64, runs: &[(Method, usize)]) {
+    let is_loop = case.loop_points.is_some();
+    let runs: Vec<(Method, usize)> = runs
+        .iter()
+        .map(|&(m, n)| {
+            let slow = m == Method::General || is_loop;
+            let f = scale_from_env(if slow {
+                "ORACLE_GENERAL_SCALE"
+            } else {
+                "ORACLE_RAYS_SCALE"
+            });
+            (m, ((n as f64 * f).round() as usize).max(1))
+        })
+        .collect();
+    let o = Oracle::new_projected(&case.spec, case.loop_points.as_deref(), r);
+    let cyl = case
+        .spec
+        .build_framed(Framing::Projected(r))
+        .unwrap_or_else(|e| panic!("fiber {} does not build: {e}", case.name));
+    let mut rng = Rng::new(seed);
+    let rays: Vec<(Ray, f64, f64)> = (0..runs.iter().map(|r| r.1).max().unwrap_or(0))
+        .map(|_| random_ray(&o, &mut rng))
+        .collect();
+    run_rays_on(case, &o, &cyl, &rays, &runs);
+}
+
 /// Runs the first `n` of `rays` per method and returns the most seam crossings the oracle saw
 /// in one run.
 pub fn run_rays(
@@ -1614,6 +1663,18 @@ pub fn run_rays(
         .spec
         .build()
         .unwrap_or_else(|e| panic!("fiber {} does not build: {e}", case.name));
+    run_rays_on(case, o, &cyl, rays, runs)
+}
+
+/// [`run_rays`] on a given library cylinder (one built with another framing than
+/// `case.spec.build()`'s).
+pub fn run_rays_on(
+    case: &Case,
+    o: &Oracle,
+    cyl: &GeneralizedCylinder,
+    rays: &[(Ray, f64, f64)],
+    runs: &[(Method, usize)],
+) -> usize {
     assert!(
         o.beta < 0.5,
         "fiber {}: max curvature * radius = {} >= 1/2 (errata 5): not a valid test fiber",
