@@ -203,6 +203,10 @@ pub struct Isolate2D {
     pub max_boxes: usize,
 }
 
+/// Roots of [`isolate_roots_2d`] closer than this many `min_width`s in both variables are
+/// taken for one: boxes at the rounding floor of `F` near a root all lead Newton's method to it.
+const DEDUPE: f64 = 1e3;
+
 /// An interval 2x2 matrix times an interval vector.
 fn mat_vec(m: [[Interval; 2]; 2], x: [Interval; 2]) -> [Interval; 2] {
     [
@@ -253,14 +257,16 @@ pub fn isolate_roots_2d<F: Function2D>(
     opts: &Isolate2D,
     out: &mut ArrayVec<[f64; 2], MAX_ROOTS>,
 ) -> bool {
+    let (lo0, hi0) = (lo, hi);
     let mut stack: ArrayVec<([f64; 2], [f64; 2]), 128> = ArrayVec::new();
     stack.push((lo, hi));
     let mut boxes = 0;
+    // Two roots this close are one (found from two boxes): `DEDUPE` resolution widths.
+    let near = |y: &[f64; 2], x: [f64; 2]| {
+        (0..2).all(|k| (x[k] - y[k]).abs() <= DEDUPE * opts.min_width[k].max(1e-15 * x[k].abs()))
+    };
     let push = |out: &mut ArrayVec<[f64; 2], MAX_ROOTS>, x: [f64; 2]| {
-        let near = |y: &[f64; 2]| {
-            (0..2).all(|k| (x[k] - y[k]).abs() <= 2.0 * opts.min_width[k].max(1e-15 * x[k].abs()))
-        };
-        if !out.is_full() && !out.iter().any(near) {
+        if !out.is_full() && !out.iter().any(|y| near(y, x)) {
             out.push(x);
         }
     };
@@ -281,17 +287,21 @@ pub fn isolate_roots_2d<F: Function2D>(
         let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
         let narrow = (0..2).all(|k| b[k] - a[k] <= opts.min_width[k]);
         if narrow {
-            // At the resolution of the enclosures: Newton's method from the centre, allowed a
-            // few box widths out (the root may sit on the edge), decides.
+            // At the resolution of the enclosures (or of F's rounding, which can be coarser):
+            // Newton's method from the centre decides, free to go anywhere in the starting box.
             let w = opts.min_width;
-            let (lo, hi) = (
-                [a[0] - 4.0 * w[0], a[1] - 4.0 * w[1]],
-                [b[0] + 4.0 * w[0], b[1] + 4.0 * w[1]],
-            );
-            if let Some(x) = newton2(f, c, lo, hi) {
+            if out.iter().any(|y| near(y, c)) {
+                continue;
+            }
+            if let Some(x) = newton2(f, c, lo0, hi0) {
+                // A root to the resolution of the box, or of F's own rounding (the width of
+                // its enclosure at a point), whichever is coarser.
                 let (g, j) = f.jet(x);
-                if (0..2).all(|i| g[i].abs() <= 4.0 * (j[i][0].abs() * w[0] + j[i][1].abs() * w[1]))
-                {
+                let floor = |i: usize| enc.f_center[i].width();
+                if (0..2).all(|i| {
+                    g[i].abs()
+                        <= 4.0 * (j[i][0].abs() * w[0] + j[i][1].abs() * w[1]) + 2.0 * floor(i)
+                }) {
                     push(out, x);
                 }
             }

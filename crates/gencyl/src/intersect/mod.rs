@@ -59,6 +59,10 @@ pub enum Method {
 /// the joint of two strand segments is not lost between them to rounding.
 pub(crate) const U_MARGIN: f64 = 1e-11;
 
+/// Hits closer than this (relative to the fiber's size) along the ray, on the same part and
+/// side, are one crossing (see [`GeneralizedCylinder::intersect_all_with`]).
+const DUPLICATE: f64 = 1e-9;
+
 /// How far off perpendicular to the axis (as `|a'.d| / (|a'| |d|)`) a ray must be on a range
 /// for [`Method::Radial`] to isolate `g(u)` there instead of its branch functions. The one-variable
 /// isolation has been seen to lose hits below `1e-4`; this keeps a factor 100 from that.
@@ -230,6 +234,26 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             }
         }
         out[start..].sort_by(|a, b| a.t.total_cmp(&b.t));
+        // One crossing found twice (from neighbouring pieces or boxes where the hit is
+        // ill-conditioned along the ray): hits within DUPLICATE of the fiber's size along the
+        // ray, on the same part and the same side of the surface, are one. (An entry and an
+        // exit that close stay two: their normals face opposite ways along the ray.)
+        let close = DUPLICATE * (self.bounds().max - self.bounds().min).length() / d.length();
+        let mut kept = start;
+        for i in start..out.len() {
+            let h = out[i];
+            let same = |k: &Hit| {
+                (h.t - k.t).abs() <= close
+                    && h.part == k.part
+                    && (h.normal.dot(d) > 0.0) == (k.normal.dot(d) > 0.0)
+            };
+            if kept > start && same(&out[kept - 1]) {
+                continue;
+            }
+            out[kept] = h;
+            kept += 1;
+        }
+        out.truncate(kept);
     }
 
     fn resolve(&self, method: Method) -> Method {
