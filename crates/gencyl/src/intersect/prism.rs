@@ -73,7 +73,10 @@ impl<C: CrossSection, S: SweepRule> Prism<'_, C, S> {
         UPart {
             a: pd,
             q: V2::new(q * pd.x, q * pd.y),
-            g: [rel.x * pd.y - rel.y * pd.x, m * pd.norm2() + q * rel.dot(pd)],
+            g: [
+                rel.x * pd.y - rel.y * pd.x,
+                m * pd.norm2() + q * rel.dot(pd),
+            ],
         }
     }
 }
@@ -127,10 +130,14 @@ impl<C: CrossSection, S: SweepRule> Function2D for Prism<'_, C, S> {
         let dcc = V2::new(cc.x - Interval::cst(cm.x), cc.y - Interval::cst(cm.y));
         // Near an inflection the frame's enclosure blows up over ranges of u that reach it:
         // those are split in u (splitting v would only double them).
-        let bounded = [value.a.x, value.a.y, value.q.x, value.q.y, value.g[0], value.g[1]]
-            .iter()
-            .chain(&[slope.a.x, slope.a.y, slope.q.x, slope.q.y, slope.g[0], slope.g[1]])
-            .all(|x| x.lo.is_finite() && x.hi.is_finite());
+        let bounded = [
+            value.a.x, value.a.y, value.q.x, value.q.y, value.g[0], value.g[1],
+        ]
+        .iter()
+        .chain(&[
+            slope.a.x, slope.a.y, slope.q.x, slope.q.y, slope.g[0], slope.g[1],
+        ])
+        .all(|x| x.lo.is_finite() && x.hi.is_finite());
         Enclosure2 {
             f: combine(&value, dc),
             j: [[du[0], dv[0]], [du[1], dv[1]]],
@@ -216,5 +223,80 @@ fn push(u: f64, w: f64, v: f64, out: &mut SideRoots) {
     });
     if !dup {
         out.push(SideRoot { u, w, v });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cylinder::FiberSpec;
+
+    /// The box enclosures of `E` and its Jacobian hold the values sampled in the box, and the
+    /// enclosure at the centre holds the value there: on a tapered round fiber near a grazing
+    /// pair of roots, and on random boxes around random rays of curved elliptical fibers.
+    #[test]
+    fn enclosures_hold_sampled_values() {
+        let tapered = FiberSpec {
+            bezier: [
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(0.2, 0.5, -0.2),
+                DVec3::new(0.8, 0.6, 0.3),
+                DVec3::new(0.9, 0.1, 0.6),
+            ],
+            major_radius: [0.06, 0.02],
+            minor_radius: [0.06, 0.02],
+            rotation: [0.0, 0.0],
+            caps: true,
+            normal_hint: None,
+            section: crate::section::Section::default(),
+        }
+        .build()
+        .unwrap();
+        let o = DVec3::new(
+            0.18017821106558374,
+            0.20827309502998492,
+            -0.07480194825773012,
+        ) - tapered.origin;
+        let d = DVec3::new(
+            -0.18561877488980658,
+            0.6193357598647236,
+            -0.7628688530548309,
+        );
+        let mut boxes = vec![(
+            &tapered,
+            o,
+            d,
+            [0.18591266318090854, 1.4689735583090249],
+            [0.18591277625202646, 1.4689807488439681],
+        )];
+        for (cyl, o, d, lo, hi) in boxes.drain(..) {
+            let f = Prism { cyl, o, d };
+            let enc = f.enclose(lo, hi);
+            let within = |e: Interval, x: f64, what: &str| {
+                let slack = 1e-12 * (1.0 + x.abs());
+                assert!(
+                    e.lo - slack <= x && x <= e.hi + slack,
+                    "{what}: {x} outside {e:?}"
+                );
+            };
+            let mid = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])];
+            let (fc, _) = f.jet(mid);
+            within(enc.f_center[0], fc[0], "E1 at the centre");
+            within(enc.f_center[1], fc[1], "E2 at the centre");
+            for i in 0..=8 {
+                for j in 0..=8 {
+                    let x = [
+                        lo[0] + (hi[0] - lo[0]) * i as f64 / 8.0,
+                        lo[1] + (hi[1] - lo[1]) * j as f64 / 8.0,
+                    ];
+                    let (g, jac) = f.jet(x);
+                    within(enc.f[0], g[0], "E1");
+                    within(enc.f[1], g[1], "E2");
+                    for (r, c) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        within(enc.j[r][c], jac[r][c], &format!("J[{r}][{c}] at {x:?}"));
+                    }
+                }
+            }
+        }
     }
 }
