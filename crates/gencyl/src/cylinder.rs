@@ -3,7 +3,9 @@
 use glam::{DVec2, DVec3};
 
 use crate::curve::CubicBezier;
-use crate::frame::{FRENET_DEGENERATE, Frame, FrameAt, Framing, frame_r, frenet_shift};
+use crate::frame::{
+    FRENET_DEGENERATE, Frame, FrameAt, Framing, frame_r, frenet_shift, frenet_switches,
+};
 use crate::real::{Dual, Interval, Real, V2, V3};
 use crate::section::{CrossSection, Section};
 use crate::sweep::{HairSweep, SweepRule};
@@ -38,6 +40,10 @@ pub enum Part {
     StartCap,
     /// The planar cap at `u = 1`.
     EndCap,
+    /// The seam: where the Frenet frame jumps (by a half turn at an inflection of a planar axis),
+    /// a section without point symmetry jumps with it, and the part of the normal plane there
+    /// that holds the section on one side only bounds the solid. Its normal is `+t` or `-t`.
+    Seam,
 }
 
 /// A ray-surface intersection.
@@ -165,6 +171,9 @@ pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
     /// Whether the caps at `u = 0` and `u = 1` close the solid.
     pub(crate) caps: [bool; 2],
     bounds: Aabb,
+    /// Where the frame may jump, ascending ([`frenet_switches`] over the search range of the
+    /// intersector): no enclosure may span one, and the solid may have a seam there.
+    switches: Box<[f64]>,
 }
 
 impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
@@ -226,6 +235,12 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 max: p + DVec3::splat(r),
             })
         });
+        let margin = crate::intersect::U_MARGIN;
+        let switches = match framing {
+            Framing::Frenet => frenet_switches(&local, -margin, 1.0 + margin).to_vec(),
+            _ => Vec::new(),
+        }
+        .into_boxed_slice();
         Ok(GeneralizedCylinder {
             axis: local,
             origin,
@@ -234,6 +249,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             sweep,
             caps: [caps; 2],
             bounds,
+            switches,
         })
     }
 
@@ -273,6 +289,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// grown by the largest section radius.
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// The parameters in `(a, b)` where the frame may jump, ascending.
+    pub(crate) fn switches_in(&self, a: f64, b: f64) -> impl Iterator<Item = f64> + '_ {
+        self.switches
+            .iter()
+            .copied()
+            .filter(move |&s| s > a && s < b)
     }
 
     /// The frame at `u`.

@@ -19,14 +19,14 @@
 //!
 //! The frame, and with it `phi`, may jump where [`frenet_shift`](crate::frame) switches (at an
 //! inflection of a planar axis it turns by a half turn there: for a section that is not
-//! point-symmetric the swept surface itself is discontinuous, see [`frenet_switches`]); `phi`
+//! point-symmetric the swept surface itself is discontinuous, see [`frenet_switches`](crate::frame::frenet_switches)); `phi`
 //! is split there so that no model spans a jump.
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use crate::cylinder::GeneralizedCylinder;
-use crate::frame::{Framing, frenet_switches};
+use crate::frame::Framing;
 use crate::real::{Dual, Real, Taylor, V2};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
@@ -454,7 +454,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let mut stretches: ArrayVec<(f64, f64), 9> = ArrayVec::new();
     let mut start = lo;
     if let Framing::Frenet = cyl.framing {
-        for s in frenet_switches(&cyl.axis, lo, hi) {
+        for s in cyl.switches_in(lo, hi) {
             stretches.push((start, s.next_down()));
             start = s;
         }

@@ -28,7 +28,7 @@ use glam::{DVec2, DVec3};
 
 use crate::bernstein::Bernstein;
 use crate::cylinder::{GeneralizedCylinder, Hit, Part, Ray, v2};
-use crate::frame::{Framing, frenet_switches};
+use crate::frame::Framing;
 use crate::real::{Real, V2};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots};
 use crate::section::CrossSection;
@@ -233,6 +233,24 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 }
             }
         }
+        // A round section turns into itself: no frame jump leaves a seam.
+        if !(self.section.is_unit_circle() && self.sweep.uniform_scale().is_some()) {
+            for s in self.switches_in(0.0, 1.0) {
+                if let Some((w, v, normal)) = self.seam_root(o, d, s) {
+                    let t = t0 + w;
+                    if t > tmin && t < tmax {
+                        out.push(Hit {
+                            t,
+                            u: s,
+                            v,
+                            point: ray.at(t),
+                            normal,
+                            part: Part::Seam,
+                        });
+                    }
+                }
+            }
+        }
         out[start..].sort_by(|a, b| a.t.total_cmp(&b.t));
         // One crossing found twice (from neighbouring pieces or boxes where the hit is
         // ill-conditioned along the ray): hits within DUPLICATE of the fiber's size along the
@@ -306,7 +324,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 // Frenet frame (the sphere of a round fiber does not turn).
                 let mut start = a;
                 if matches!(self.framing, Framing::Frenet) {
-                    for s in frenet_switches(&self.axis, a, b) {
+                    for s in self.switches_in(a, b) {
                         quad.roots(start, s.next_down(), out);
                         start = s;
                     }
@@ -364,6 +382,35 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 v: crate::section::angle(DVec2::new(qphi.x / q, qphi.y / q)),
             });
         }
+    }
+
+    /// The seam at a frame jump `s` ([`Part::Seam`]): the ray meets the normal plane there at
+    /// `w = a'.(a - o) / a'.d`; in the frames just before and at `s` its point has the section
+    /// coordinates `phiL`, `phiR`; it is on the seam when exactly one of them lies in the section,
+    /// with the outward normal `+t` if the solid is on the side before `s` (`phiL` inside), `-t`
+    /// otherwise, and `v` the angle on that side. A ray in the plane (`a'.d = 0`) meets the seam
+    /// only along a line of measure zero and gets no seam hit.
+    fn seam_root(&self, o: DVec3, d: DVec3, s: f64) -> Option<(f64, f64, DVec3)> {
+        let d1 = self.axis.d1(s);
+        let q = d1.dot(d);
+        if !(q.abs() > 1e-13 * d1.length() * d.length()) {
+            return None;
+        }
+        let a = self.axis.point(s);
+        let w = d1.dot(a - o) / q;
+        let e = o + w * d - a;
+        let local = |u: f64| {
+            let f = self.frame(u);
+            v2(self.sweep.inverse(s, V2::new(f.n.dot(e), f.b.dot(e))))
+        };
+        let (left, right) = (local(s.next_down()), local(s));
+        let (inl, inr) = (self.section.contains(left), self.section.contains(right));
+        if inl == inr || !w.is_finite() {
+            return None;
+        }
+        let t = d1 / d1.length();
+        let (normal, phi) = if inl { (t, left) } else { (-t, right) };
+        Some((w, crate::section::angle(phi), normal))
     }
 
     /// The cap at `u = 0` or `1`: the plane `t.(x - a) = 0` meets the ray at

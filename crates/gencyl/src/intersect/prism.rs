@@ -23,7 +23,7 @@ use glam::{DVec2, DVec3};
 
 use super::{SideRoot, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
-use crate::frame::{Framing, frenet_switches};
+use crate::frame::Framing;
 use crate::real::{Dual, Interval, Real, Taylor, V2, V3};
 use crate::roots::{Enclosure2, Function2D, Isolate2D, isolate_roots_2d};
 use crate::section::CrossSection;
@@ -175,7 +175,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let mut stretches: ArrayVec<(f64, f64), 9> = ArrayVec::new();
     let mut start = u0;
     if let Framing::Frenet = cyl.framing {
-        for s in frenet_switches(&cyl.axis, u0, u1) {
+        for s in cyl.switches_in(u0, u1) {
             stretches.push((start, s.next_down()));
             start = s;
         }

@@ -929,6 +929,17 @@ impl Oracle {
         };
         let (c0, v0) = cap(0.0);
         let (c1, v1) = cap(1.0);
+        // In the normal plane at a jump of the frame (where neither side nor cap holds it).
+        let seam_at = if side_ok || c0 || c1 {
+            None
+        } else {
+            let mut on_seam = None;
+            self.plane_roots(x, |u| {
+                on_seam = self.seams.iter().copied().find(|s| (u - s).abs() <= 1e-9);
+                on_seam.is_some()
+            });
+            on_seam
+        };
         let (part, u, v, normal) = match (side_ok, c0, c1) {
             (true, false, false) => {
                 let (_, u, v) = side.unwrap();
@@ -940,24 +951,20 @@ impl Oracle {
                 let (_, u, v) = side.unwrap();
                 (OPart::Rim, u, v, self.normal_fd(u, v))
             }
-            // In the normal plane at a jump of the frame: the seam.
-            _ if {
-                let mut on_seam = false;
-                self.plane_roots(x, |u| {
-                    on_seam |= self.seams.iter().any(|s| (u - s).abs() <= 1e-9);
-                    on_seam
-                });
-                on_seam
-            } =>
-            {
+            // In the normal plane at a jump of the frame: the seam, with normal +-t there,
+            // pointing out (against d where the ray enters).
+            _ if seam_at.is_some() => {
+                let s = seam_at.unwrap_or(f64::NAN);
+                let ts = bez_d1(&self.p, s).normalize();
+                let along = if ts.dot(r.d) > 0.0 { ts } else { -ts };
                 return Crossing {
                     t,
                     part: OPart::Seam,
-                    u: f64::NAN,
+                    u: s,
                     v: f64::NAN,
-                    normal: DVec3::NAN,
+                    normal: if entering { -along } else { along },
                     entering,
-                    band: Some("seam"),
+                    band: None,
                 };
             }
             // Neither side nor cap within tolerance: an oracle failure, reported by the caller.
@@ -1192,6 +1199,7 @@ pub fn part_of(p: Part) -> OPart {
         Part::Side => OPart::Side,
         Part::StartCap => OPart::StartCap,
         Part::EndCap => OPart::EndCap,
+        Part::Seam => OPart::Seam,
     }
 }
 
@@ -1296,6 +1304,47 @@ pub fn check_hit(o: &Oracle, r: &RayCtx, h: &Hit, st: &mut Stats, ctx: &dyn Fn()
                         ctx()
                     ));
                 }
+            }
+        }
+        Part::Seam => {
+            // In the normal plane at one of the oracle's seams, with normal +-t there.
+            let Some(&s) = o.seams.iter().find(|&&s| (h.u - s).abs() <= 1e-9) else {
+                st.flag_hit(h.t);
+                st.fail_as(
+                    "seam off a jump",
+                    format!("seam hit at u = {} with no jump of the frame there (jumps {:?})\n{}\nhit {h:?}", h.u, o.seams, ctx()),
+                );
+                return;
+            };
+            let ts = bez_d1(&o.p, s).normalize();
+            let pd = ts.dot(x - o.axis(s));
+            st.max_point_err = st.max_point_err.max(pd.abs() / o.size);
+            if pd.abs() > o.tol.point {
+                st.flag_hit(h.t);
+                st.fail_as(
+                    "off seam",
+                    format!("seam hit {:.3e} size off the normal plane at the jump u = {s}\n{}\nhit {h:?}", pd.abs() / o.size, ctx()),
+                );
+            }
+            let nerr = (h.normal - ts).length().min((h.normal + ts).length());
+            if nerr > 1e-9 {
+                st.fail_as(
+                    "seam normal",
+                    format!(
+                        "seam hit: normal {:?} is not +-t = {ts:?}\n{}\nhit {h:?}",
+                        h.normal,
+                        ctx()
+                    ),
+                );
+            }
+            let eps = eps.max(4.0 * pd.abs());
+            let (a, b) = (o.inside(x - eps * h.normal), o.inside(x + eps * h.normal));
+            st.outward_checked += 1;
+            if !a || b {
+                st.fail_as(
+                    "seam normal not outward",
+                    format!("seam hit: normal not outward: inside(x - eps n) = {a}, inside(x + eps n) = {b}\n{}\nhit {h:?}", ctx()),
+                );
             }
         }
         Part::StartCap | Part::EndCap => {
