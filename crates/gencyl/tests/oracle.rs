@@ -270,6 +270,23 @@ fn case(name: &str) -> Case {
             trilobal_points(),
             fiber(curve_3d(), [0.06, 0.05], [0.05, 0.04], [0.0, PI], true),
         ),
+        // A U-bend whose radius of curvature at the apex (about 0.3) is below the section's reach:
+        // the swept surface folds through the solid there (errata 5).
+        "fold-round" => Case {
+            name: "fold-round",
+            spec: FiberSpec::round(u_bend(), 0.45),
+            loop_points: None,
+        },
+        "fold-ellipse" => Case {
+            name: "fold-ellipse",
+            spec: fiber(u_bend(), [0.5, 0.4], [0.25, 0.2], [0.3, 0.3], true),
+            loop_points: None,
+        },
+        "fold-twist" => Case {
+            name: "fold-twist",
+            spec: fiber(u_bend(), [0.45, 0.45], [0.2, 0.2], [0.0, 2.0 * PI], true),
+            loop_points: None,
+        },
         "kidney-nocaps" => loop_case(
             "kidney-nocaps",
             kidney_points(),
@@ -341,6 +358,40 @@ fn oracle_taper_nocaps() {
             (Method::General, 300),
         ],
     );
+}
+
+/// The axis of the folding cases: a U-bend, slightly out of its plane (no inflection).
+fn u_bend() -> [DVec3; 4] {
+    [
+        v3(0.0, 0.0, 0.0),
+        v3(1.2, 0.0, 0.1),
+        v3(1.2, 1.0, -0.1),
+        v3(0.0, 1.0, 0.05),
+    ]
+}
+
+/// Thick fibers folding through themselves at a tight bend (errata 5): only the crossings of
+/// the solid's boundary count (the oracle's crossings are where its inside test changes), so
+/// the sheets of surface inside the solid must not be reported, and every hit's outside lies
+/// outside the solid.
+#[test]
+fn oracle_folded_solids() {
+    for (name, seed) in [("fold-round", 31), ("fold-ellipse", 32), ("fold-twist", 33)] {
+        let c = case(name);
+        assert!(
+            c.spec.build().unwrap().may_fold(),
+            "{name}: the bend is tighter than the section"
+        );
+        run_case(
+            &c,
+            seed,
+            &[
+                (Method::Auto, 400),
+                (Method::Radial, 300),
+                (Method::General, 100),
+            ],
+        );
+    }
 }
 
 #[test]

@@ -233,6 +233,21 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 }
             }
         }
+        if self.may_fold() {
+            for (w, u, v, normal) in self.envelope_roots(o, d) {
+                let t = t0 + w;
+                if t > tmin && t < tmax {
+                    out.push(Hit {
+                        t,
+                        u,
+                        v,
+                        point: ray.at(t),
+                        normal,
+                        part: Part::Seam,
+                    });
+                }
+            }
+        }
         // A round section turns into itself: no frame jump leaves a seam.
         if !(self.section.is_unit_circle() && self.sweep.uniform_scale().is_some()) {
             for s in self.switches_in(0.0, 1.0) {
@@ -267,6 +282,34 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             };
             if kept > start && same(&out[kept - 1]) {
                 continue;
+            }
+            out[kept] = h;
+            kept += 1;
+        }
+        out.truncate(kept);
+        if self.may_fold() {
+            self.keep_boundary_crossings(start, out);
+        }
+    }
+
+    /// Where the surface folds through the solid, keeps only the hits on its boundary
+    /// (interface.md 3, errata 5), with their normals pointing out: a hit whose point moved a
+    /// little along its normal leaves the solid is kept; one with solid on both sides lies on a
+    /// sheet of the surface that passes through the solid and is dropped; one with solid only
+    /// ahead lies on a sheet turned inside out beyond a fold edge, and its normal is flipped.
+    /// ([`Self::contains`] decides; the probe is a millionth of the thinnest section's reach,
+    /// far above the hits' error.)
+    fn keep_boundary_crossings(&self, start: usize, out: &mut Vec<Hit>) {
+        let [l0, l1] = self.sweep.scale_bound();
+        let step = 1e-6 * l0.min(l1) * self.section.bounding_radius();
+        let mut kept = start;
+        for i in start..out.len() {
+            let mut h = out[i];
+            if self.contains(h.point + step * h.normal) {
+                if self.contains(h.point - step * h.normal) {
+                    continue;
+                }
+                h.normal = -h.normal;
             }
             out[kept] = h;
             kept += 1;
@@ -411,6 +454,70 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let t = d1 / d1.length();
         let (normal, phi) = if inl { (t, left) } else { (-t, right) };
         Some((w, crate::section::angle(phi), normal))
+    }
+
+    /// Where the solid folds, the other part of a normal plane that bounds it: the envelope of
+    /// the normal planes. A point of the ray lies in the normal plane at `u` where
+    /// `G(u, w) = N(u) + w q(u) = 0` (`N = a'.(o - a)`, `q = a'.d`); that family of planes has its
+    /// envelope (the polar developable, at the axis' centres of curvature) where also
+    /// `dG/du = N' + w q' = 0`, i.e. at the roots of `P = N' q - N q'` (degree 6, in Bernstein
+    /// form), with `w = -N/q`. Where the section there holds the point, crossing the envelope
+    /// adds or removes a normal plane through the ray's point that holds it: the point enters
+    /// or leaves the solid there unless another plane holds it (the caller keeps only true
+    /// boundary crossings). The normal is `+-t(u)`, toward the side the solid is not on.
+    fn envelope_roots(&self, o: DVec3, d: DVec3) -> ArrayVec<(f64, f64, f64, DVec3), 8> {
+        let mut out = ArrayVec::new();
+        let p = self.axis.points;
+        let h = self.axis.hodograph();
+        let h2 = self.axis.second_hodograph();
+        let coord = |k: usize| {
+            let e = Bernstein(p.map(|c| o[k] - c[k]));
+            let n: Bernstein<6> = Bernstein(h.map(|v| v[k])).mul(&e);
+            let n2: Bernstein<5> = Bernstein(h2.map(|v| v[k])).mul(&e);
+            (n, n2)
+        };
+        let (x, y, z) = (coord(0), coord(1), coord(2));
+        let big_n = x.0.add(&y.0).add(&z.0);
+        let speed2: Bernstein<5> = [0, 1, 2]
+            .map(|k| {
+                let hk = Bernstein(h.map(|v| v[k]));
+                hk.mul::<3, 5>(&hk)
+            })
+            .iter()
+            .fold(Bernstein([0.0; 5]), |s, b| s.add(b));
+        // N' = a''.(o - a) - |a'|^2.
+        let dn = x.1.add(&y.1).add(&z.1).sub(&speed2);
+        let q = Bernstein(h.map(|v| v.dot(d)));
+        let dq: Bernstein<2> = q.derivative();
+        let a: Bernstein<7> = dn.mul(&q);
+        let b: Bernstein<7> = big_n.mul(&dq);
+        let poly = a.sub(&b);
+        let err = 1e-13 * (a.magnitude() + b.magnitude());
+        let mut us = ArrayVec::new();
+        poly.roots(&poly.derivative::<6>(), err, 1e-15, 400, &mut us);
+        let [l0, l1] = self.sweep.scale_bound();
+        let step = 1e-6 * l0.min(l1) * self.section.bounding_radius();
+        for u in us {
+            let qu = q.eval(u);
+            if !(qu.abs() > 1e-13 * self.q_scale(d)) {
+                continue;
+            }
+            let w = -big_n.eval(u) / qu;
+            let e = o + w * d - self.axis.point(u);
+            let f = self.frame(u);
+            let phi = v2(self.sweep.inverse(u, V2::new(f.n.dot(e), f.b.dot(e))));
+            if !w.is_finite() || !self.section.contains(phi) || out.is_full() {
+                continue;
+            }
+            let x = self.origin + o + w * d;
+            let t = f.t;
+            let (before, after) = (self.contains(x - step * t), self.contains(x + step * t));
+            if before != after {
+                let normal = if before { t } else { -t };
+                out.push((w, u, crate::section::angle(phi), normal));
+            }
+        }
+        out
     }
 
     /// The cap at `u = 0` or `1`: the plane `t.(x - a) = 0` meets the ray at

@@ -726,21 +726,83 @@ impl Oracle {
             if x.cmplt(*lo).any() || x.cmpgt(*hi).any() {
                 continue;
             }
+            // The derivative, for pairs of roots within one cell (a folded solid's normal
+            // planes are born in pairs at their envelope): where it changes sign in a cell
+            // whose ends agree, the extremum between may still cross zero.
+            let dcoef = [
+                coef[1],
+                2.0 * coef[2],
+                3.0 * coef[3],
+                4.0 * coef[4],
+                5.0 * coef[5],
+                0.0,
+            ];
             let mut u0 = (k * self.m) as f64 / n as f64;
-            let mut f0 = poly_eval(&coef, u0).0;
+            let (mut f0, mut d0) = poly_eval(&coef, u0);
             for j in 1..=self.m {
                 let u1 = (k * self.m + j) as f64 / n as f64;
-                let f1 = poly_eval(&coef, u1).0;
+                let (f1, d1) = poly_eval(&coef, u1);
                 if (f0 <= 0.0 && f1 >= 0.0) || (f0 >= 0.0 && f1 <= 0.0) {
                     let u = poly_root(&coef, u0, u1, f0, f1);
                     if visit(u) {
                         return true;
                     }
+                } else if (d0 < 0.0) != (d1 < 0.0) {
+                    let uc = poly_root(&dcoef, u0, u1, d0, d1);
+                    let fc = poly_eval(&coef, uc).0;
+                    if (fc < 0.0) != (f0 < 0.0) {
+                        for (a, b, fa, fb) in [(u0, uc, f0, fc), (uc, u1, fc, f1)] {
+                            if visit(poly_root(&coef, a, b, fa, fb)) {
+                                return true;
+                            }
+                        }
+                    }
                 }
-                (u0, f0) = (u1, f1);
+                (u0, f0, d0) = (u1, f1, d1);
             }
         }
         false
+    }
+
+    /// A double root `u` of the plane equation `a'(u).(x - a(u)) = 0` whose section holds `x`:
+    /// `x` lies on the envelope of the normal planes there (within `1e-9` of the size in the
+    /// equation's value per unit speed), in the section. The critical points come from the
+    /// derivative's sign changes on a fine grid.
+    pub fn envelope_at(&self, x: DVec3) -> Option<f64> {
+        let f = |u: f64| bez_d1(&self.p, u).dot(x - bez(&self.p, u));
+        let df = |u: f64| {
+            bez_d2(&self.p, u).dot(x - bez(&self.p, u)) - bez_d1(&self.p, u).length_squared()
+        };
+        let n = 4000;
+        let mut u0 = 0.0;
+        let mut d0 = df(u0);
+        for k in 1..=n {
+            let u1 = k as f64 / n as f64;
+            let d1 = df(u1);
+            if (d0 < 0.0) != (d1 < 0.0) {
+                let (mut a, mut b, mut da) = (u0, u1, d0);
+                for _ in 0..100 {
+                    let m = 0.5 * (a + b);
+                    if m <= a || m >= b {
+                        break;
+                    }
+                    if (df(m) < 0.0) == (da < 0.0) {
+                        (a, da) = (m, df(m));
+                    } else {
+                        b = m;
+                    }
+                }
+                let uc = 0.5 * (a + b);
+                let speed = bez_d1(&self.p, uc).length();
+                if f(uc).abs() <= 1e-9 * speed * self.size
+                    && self.sec.contains(self.section_point(uc, x).0)
+                {
+                    return Some(uc);
+                }
+            }
+            (u0, d0) = (u1, d1);
+        }
+        None
     }
 
     /// Point membership in the solid (`x` relative to `origin`).
@@ -938,9 +1000,11 @@ impl Oracle {
                 on_seam = self.seams.iter().copied().find(|s| (u - s).abs() <= 1e-9);
                 on_seam.is_some()
             });
-            on_seam
+            // Or on the envelope of the normal planes, where a folded solid's planes through a
+            // point are born in pairs (a double root of the plane equation) inside the section.
+            on_seam.or_else(|| self.envelope_at(x))
         };
-        let (part, u, v, normal) = match (side_ok, c0, c1) {
+        let (part, u, v, mut normal) = match (side_ok, c0, c1) {
             (true, false, false) => {
                 let (_, u, v) = side.unwrap();
                 (OPart::Side, u, v, self.normal_fd(u, v))
@@ -986,6 +1050,10 @@ impl Oracle {
             band = Some("rim");
         } else if cosi.abs() < GRAZE_COS {
             band = Some("grazing");
+        } else if (cosi < 0.0) != entering && self.beta >= 1.0 {
+            // A folded solid's boundary can lie on a sheet of the swept surface that is turned
+            // inside out beyond a fold edge: its outward normal is the opposite one.
+            normal = -normal;
         } else if (cosi < 0.0) != entering {
             // The oracle's own normal disagrees with its inside test: an oracle bug, reported.
             band = Some("ORACLE-INCONSISTENT");
@@ -1281,7 +1349,11 @@ pub fn check_hit(o: &Oracle, r: &RayCtx, h: &Hit, st: &mut Stats, ctx: &dyn Fn()
                     ctx()
                 ));
             }
-            let nf = o.normal_fd(h.u, h.v);
+            let mut nf = o.normal_fd(h.u, h.v);
+            // On a sheet turned inside out beyond a fold edge the outward normal is the other one.
+            if o.beta >= 1.0 && o.inside(x + 4.0 * eps * nf) && !o.inside(x - 4.0 * eps * nf) {
+                nf = -nf;
+            }
             let nerr = (nf - h.normal).length();
             st.max_normal_err = st.max_normal_err.max(nerr);
             if nerr > o.tol.normal {
@@ -1307,12 +1379,20 @@ pub fn check_hit(o: &Oracle, r: &RayCtx, h: &Hit, st: &mut Stats, ctx: &dyn Fn()
             }
         }
         Part::Seam => {
-            // In the normal plane at one of the oracle's seams, with normal +-t there.
-            let Some(&s) = o.seams.iter().find(|&&s| (h.u - s).abs() <= 1e-9) else {
+            // In the normal plane at one of the oracle's seams, or at a double root of the
+            // plane equation (the envelope of the normal planes through a folded solid; the
+            // double root's u is conditioned like a square root), with normal +-t there.
+            let at = o
+                .seams
+                .iter()
+                .copied()
+                .find(|&s| (h.u - s).abs() <= 1e-9)
+                .or_else(|| o.envelope_at(x).filter(|uc| (uc - h.u).abs() <= 1e-5));
+            let Some(s) = at else {
                 st.flag_hit(h.t);
                 st.fail_as(
                     "seam off a jump",
-                    format!("seam hit at u = {} with no jump of the frame there (jumps {:?})\n{}\nhit {h:?}", h.u, o.seams, ctx()),
+                    format!("seam hit at u = {} with no jump of the frame there (jumps {:?}) and off the normal planes' envelope\n{}\nhit {h:?}", h.u, o.seams, ctx()),
                 );
                 return;
             };
@@ -1663,8 +1743,11 @@ pub fn run_rays(
         .spec
         .build()
         .unwrap_or_else(|e| panic!("fiber {} does not build: {e}", case.name));
+    // Fibers that fold (errata 5) only in the cases named for it: elsewhere a tight bend would
+    // be a mistake in the fixture. (The inside test holds either way: it finds every normal
+    // plane through a point within the reach of the axis.)
     assert!(
-        o.beta < 0.5,
+        o.beta < 0.5 || case.name.starts_with("fold-"),
         "fiber {}: max curvature * radius = {} >= 1/2 (errata 5): not a valid test fiber",
         case.name,
         o.beta
