@@ -264,20 +264,22 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 
     /// Whether the swept surface of sections within `r` of an axis like `axis` may pass through
     /// its own solid (errata 5): unless the reach stays below the radius of curvature,
-    /// `r kappa < 1` with `kappa <= max|a''| / min|a'|^2`, and the tangent turns by less than a
-    /// right angle (every pair of the hodograph's control points, which span the cone of the
-    /// tangents, less than 90 degrees apart), so that neither nearby nor distant parts of the
-    /// tube overlap. (A sufficient test, with 1% to spare; hair never comes near it.)
+    /// `r kappa < 1` with `kappa <= max|a''| / min|a'|^2` (no fold near the axis), and the
+    /// tangents all lie in one open half-space (every hodograph control point, which span their
+    /// cone, has a positive component along their normalised sum), so the axis runs one way
+    /// along that direction, turns by less than half a turn and cannot loop back onto itself.
+    /// (A sufficient test, with 1% to spare; hair never comes near it.)
     fn fold_possible(axis: &CubicBezier, r: f64) -> bool {
         let h = axis.hodograph();
-        let turns = (0..3).any(|i| (i + 1..3).any(|j| h[i].dot(h[j]) <= 0.0));
+        let w = h.iter().map(|v| v.normalize_or_zero()).sum::<DVec3>();
+        let monotone = h.iter().all(|v| v.dot(w) > 0.0);
         let second = axis.second_hodograph();
         let kappa = second[0].length().max(second[1].length()) / axis.min_speed().powi(2);
-        turns || !(r * kappa < 0.99)
+        !monotone || !(r * kappa < 0.99)
     }
 
     /// Whether the swept surface may pass through the solid (radius beyond the axis' radius of
-    /// curvature, or a bend of more than a right angle): then the intersector keeps only the
+    /// curvature, or an axis that may turn back on itself): then the intersector keeps only the
     /// crossings of the solid's boundary, tested with [`Self::contains`].
     pub fn may_fold(&self) -> bool {
         self.may_fold
