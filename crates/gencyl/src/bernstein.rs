@@ -7,6 +7,10 @@
 //! coefficient. Products and derivatives stay in the form. `K` is the number of coefficients,
 //! the degree plus one.
 
+use arrayvec::ArrayVec;
+
+use crate::roots::bracketed_root;
+
 /// A polynomial of degree `K - 1` in Bernstein form on `[0, 1]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bernstein<const K: usize>(pub [f64; K]);
@@ -123,6 +127,58 @@ impl<const K: usize> Bernstein<K> {
             *ck /= binomial(m + n, k);
         }
         Bernstein(c)
+    }
+
+    /// The roots of `p` in `[0, 1]`, ascending, appended to `out`, for coefficients known to
+    /// within `err`: a subinterval whose coefficients keep one sign (beyond `err`) holds none,
+    /// one whose coefficients change sign once exactly one (Descartes' rule of signs for the
+    /// Bernstein basis), found by bracketed Newton steps on `p` and `dp` (its derivative);
+    /// others are halved, down to `min_width`, where a sign change between the ends gives one
+    /// root (a double root whose value stays within `err` gives none). At most `budget`
+    /// subintervals.
+    pub fn roots<const J: usize>(
+        &self,
+        dp: &Bernstein<J>,
+        err: f64,
+        min_width: f64,
+        budget: usize,
+        out: &mut ArrayVec<f64, 16>,
+    ) {
+        let f = |s: f64| (self.eval(s), dp.eval(s));
+        let mut stack: ArrayVec<(Self, f64, f64), 64> = ArrayVec::new();
+        stack.push((*self, 0.0, 1.0));
+        let mut cells = 0;
+        while let Some((b, s0, s1)) = stack.pop() {
+            cells += 1;
+            let (lo, hi) = b.range();
+            if lo - err > 0.0 || hi + err < 0.0 {
+                continue;
+            }
+            let clear = b.0.iter().all(|c| c.abs() > err);
+            let changes =
+                b.0.windows(2)
+                    .filter(|w| (w[0] > 0.0) != (w[1] > 0.0))
+                    .count();
+            let narrow =
+                s1 - s0 <= min_width || cells > budget || stack.len() + 2 > stack.capacity();
+            if (clear && changes == 1) || narrow {
+                let (fa, fb) = (f(s0).0, f(s1).0);
+                if let Some(r) = bracketed_root(&f, s0, s1, fa, fb)
+                    && !out.is_full()
+                    && out.last().is_none_or(|&l| r > l)
+                {
+                    out.push(r);
+                }
+                continue;
+            }
+            if clear && changes == 0 {
+                continue;
+            }
+            let m = 0.5 * (s0 + s1);
+            let (l, r) = b.split(0.5);
+            stack.push((r, m, s1));
+            stack.push((l, s0, m));
+        }
     }
 
     /// `p + q`.

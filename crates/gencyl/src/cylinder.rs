@@ -2,10 +2,11 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::bernstein::Bernstein;
 use crate::curve::CubicBezier;
 use crate::frame::{
     FRENET_DEGENERATE, Frame, FrameAt, Framing, PROJECTION_MIN_SINE, STRAIGHT_TOLERANCE, frame_r,
-    frenet_shift, projected_frame,
+    frenet_shift, frenet_switches, projected_frame,
 };
 use crate::real::{Dual, Interval, Real, V2, V3};
 use crate::section::{CrossSection, Section};
@@ -41,6 +42,13 @@ pub enum Part {
     StartCap,
     /// The planar cap at `u = 1`.
     EndCap,
+    /// A part of a normal plane that bounds the solid, with normal `+t` or `-t`: where the
+    /// Frenet frame jumps (by a half turn at an inflection of a planar axis) a section without
+    /// point symmetry jumps with it, and the part of the normal plane there that holds the
+    /// section on one side only bounds the solid; and where a section reaches beyond the axis'
+    /// radius of curvature, the envelope of the normal planes (their line at the centre of
+    /// curvature) passes through the section and bounds the folded solid too.
+    Seam,
 }
 
 /// A ray-surface intersection.
@@ -171,6 +179,11 @@ pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
     /// Whether the caps at `u = 0` and `u = 1` close the solid.
     pub(crate) caps: [bool; 2],
     bounds: Aabb,
+    /// Where the frame may jump, ascending ([`frenet_switches`] over the search range of the
+    /// intersector): no enclosure may span one, and the solid may have a seam there.
+    switches: Box<[f64]>,
+    /// Whether the swept surface may pass through the solid (see [`Self::may_fold`]).
+    may_fold: bool,
 }
 
 impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
@@ -319,6 +332,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 max: p + DVec3::splat(r),
             })
         });
+        let margin = crate::intersect::U_MARGIN;
+        let switches = match framing {
+            Framing::Frenet => frenet_switches(&local, -margin, 1.0 + margin).to_vec(),
+            _ => Vec::new(),
+        }
+        .into_boxed_slice();
+        // On the axis scaled to unit extent (r kappa does not change), so no square overflows.
+        let may_fold = Self::fold_possible(&unit, r / extent);
         Ok(GeneralizedCylinder {
             axis: local,
             origin,
@@ -327,6 +348,62 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             sweep,
             caps: [caps; 2],
             bounds,
+            switches,
+            may_fold,
+        })
+    }
+
+    /// Whether the swept surface of sections within `r` of an axis like `axis` may pass through
+    /// its own solid (errata 5): unless the reach stays below the radius of curvature,
+    /// `r kappa < 1` with `kappa <= max|a''| / min|a'|^2` (no fold near the axis), and the
+    /// tangents all lie in one open half-space (every hodograph control point, which span their
+    /// cone, has a positive component along their normalised sum), so the axis runs one way
+    /// along that direction, turns by less than half a turn and cannot loop back onto itself.
+    /// (A sufficient test, with 1% to spare; hair never comes near it.)
+    fn fold_possible(axis: &CubicBezier, r: f64) -> bool {
+        let h = axis.hodograph();
+        let w = h.iter().map(|v| v.normalize_or_zero()).sum::<DVec3>();
+        let monotone = h.iter().all(|v| v.dot(w) > 0.0);
+        let second = axis.second_hodograph();
+        let kappa = second[0].length().max(second[1].length()) / axis.min_speed().powi(2);
+        !monotone || !(r * kappa < 0.99)
+    }
+
+    /// Whether the swept surface may pass through the solid (radius beyond the axis' radius of
+    /// curvature, or an axis that may turn back on itself): then the intersector keeps only the
+    /// crossings of the solid's boundary, tested with [`Self::contains`].
+    pub fn may_fold(&self) -> bool {
+        self.may_fold
+    }
+
+    /// Whether the point `p` (world coordinates) lies in the solid: in the filled section of a
+    /// normal plane through it. The normal planes through `p` are at the roots of
+    /// `N(u) = a'(u).(p - a(u))` in `[0, 1]` (degree 5, isolated in Bernstein form); at each, `p`
+    /// is inside when its section coordinates `s^-1((n.e, b.e), u)`, `e = p - a(u)`, lie in the
+    /// section (the boundary counts as inside). This is the solid's definition, the union of
+    /// the filled sections, so it holds where the surface folds through it too.
+    pub fn contains(&self, p: DVec3) -> bool {
+        let p = p - self.origin;
+        let h = self.axis.hodograph();
+        let e = self.axis.points.map(|c| p - c);
+        let coord = |k: usize| {
+            let hk = Bernstein(h.map(|v| v[k]));
+            let ek = Bernstein(e.map(|v| v[k]));
+            hk.mul::<4, 6>(&ek)
+        };
+        let (nx, ny, nz) = (coord(0), coord(1), coord(2));
+        let n = nx.add(&ny).add(&nz);
+        let err = 1e-13 * (nx.magnitude() + ny.magnitude() + nz.magnitude());
+        let mut us = arrayvec::ArrayVec::new();
+        n.roots(&n.derivative::<5>(), err, 1e-15, 400, &mut us);
+        us.iter().any(|&u| {
+            let f = self.frame(u);
+            let e = p - self.axis.point(u);
+            let q = self
+                .sweep
+                .inverse(u, V2::new(f.n.dot(e), f.b.dot(e)))
+                .value();
+            self.section.contains(DVec2::new(q.x, q.y))
         })
     }
 
@@ -366,6 +443,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// grown by the largest section radius.
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// The parameters in `(a, b)` where the frame may jump, ascending.
+    pub(crate) fn switches_in(&self, a: f64, b: f64) -> impl Iterator<Item = f64> + '_ {
+        self.switches
+            .iter()
+            .copied()
+            .filter(move |&s| s > a && s < b)
     }
 
     /// The frame at `u`.

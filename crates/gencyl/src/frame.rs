@@ -216,20 +216,31 @@ impl Framing {
 /// Below this `|a' x a''| / (|a'| max |a''|)` the Frenet normal at a point is rounding noise.
 pub(crate) const FRENET_DEGENERATE: f64 = 1e-9;
 
-/// How far from `u` the Frenet frame standing for `u` is taken: 0, or `1e-7` inward where
+/// How far from `u` the Frenet frame standing for `u` is taken: 0, or `1e-7` away where
 /// `a' x a''` is negligible against `|a'| max|a''|` (`a''` is linear, so its largest length is
 /// at an end). That happens at inflections and at the root and tip of a strand, whose
 /// reflected end points make `a'' = 0` there exactly in theory and rounding noise in practice:
-/// the noise would turn the end cap against the side surface.
+/// the noise would turn the end cap against the side surface. Within such a stretch the frame
+/// is taken toward where `|a' x a''|` grows (`d|a' x a''|^2/du = 2 (a' x a'').(a' x a''')`), so
+/// each side of an inflection takes its own limit and the frame switches exactly at the
+/// inflection, where `|a' x a''|` is least (and at a strand's end, inward). With `a'` and `a''`
+/// scaled to unit size ([`CubicBezier::derivative_scales`]) at any scale of the curve.
 pub(crate) fn frenet_shift(axis: &CubicBezier, u: f64) -> f64 {
-    let d1 = axis.d1(u);
-    let scale = d1.length() * axis.d2(0.0).length().max(axis.d2(1.0).length());
-    if d1.cross(axis.d2(u)).length() > FRENET_DEGENERATE * scale {
-        0.0
-    } else if u + 1e-7 <= 1.0 {
+    let [k1, k2] = axis.derivative_scales();
+    let d1 = axis.d1(u) * k1;
+    let c = d1.cross(axis.d2(u) * k2);
+    let scale = d1.length() * axis.d2(0.0).length().max(axis.d2(1.0).length()) * k2;
+    if c.length() > FRENET_DEGENERATE * scale {
+        return 0.0;
+    }
+    let grows = c.dot(d1.cross(axis.third_derivative() * k2)) >= 0.0;
+    let s = if grows { 1e-7 } else { -1e-7 };
+    if u + s > 1.0 {
+        -1e-7
+    } else if u + s < 0.0 {
         1e-7
     } else {
-        -1e-7
+        s
     }
 }
 
@@ -249,8 +260,8 @@ impl Function1D for Degenerate<'_> {
 }
 
 /// Every parameter in `(lo, hi)` where [`frenet_shift`] changes value, ascending: the ends of
-/// the stretches around inflections (and strand ends) where `a' x a''` is negligible, and the
-/// point `1 - 1e-7` where the shift inside such a stretch changes side. The Frenet frame of
+/// the stretches around inflections (and strand ends) where `a' x a''` is negligible, and inside
+/// a stretch the point where the shift changes side (the inflection). The Frenet frame of
 /// [`frame_r`] may jump there (by a half turn at an inflection of a planar axis), and nowhere
 /// else: between two of them it is smooth, and an enclosure over a subinterval, which decides
 /// the shift at its midpoint, holds the frame at every point of it.
@@ -274,10 +285,34 @@ pub(crate) fn frenet_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<
     let mut roots = ArrayVec::new();
     isolate_roots(&f, lo, hi, &opts, &mut roots);
     let shift = |u: f64| frenet_shift(axis, u);
-    let mut candidates: ArrayVec<f64, 17> = roots.into_iter().collect();
-    let end_switch = 1.0 - 1e-7;
-    if end_switch > lo && end_switch < hi && shift(end_switch) != 0.0 {
-        candidates.push(end_switch);
+    let mut candidates: ArrayVec<f64, 33> = roots.iter().copied().collect();
+    // Inside a stretch (between two of its ends, or an end and lo or hi) the side the frame is
+    // taken from flips once, at the inflection: a candidate where the shifts at the stretch's
+    // ends differ, bisected on the shift.
+    let mut ends: ArrayVec<f64, 18> = ArrayVec::new();
+    ends.push(lo);
+    ends.extend(roots.iter().copied());
+    ends.push(hi);
+    for w in ends.windows(2) {
+        let (mut a, mut b) = (w[0], w[1]);
+        let (sa, sb) = (shift(a.next_up()), shift(b.next_down()));
+        if sa == 0.0 || sb == 0.0 || sa == sb || !(a < b) {
+            continue;
+        }
+        loop {
+            let mid = 0.5 * (a + b);
+            if mid <= a || mid >= b {
+                break;
+            }
+            if shift(mid) == sa {
+                a = mid;
+            } else {
+                b = mid;
+            }
+        }
+        if !candidates.is_full() {
+            candidates.push(b);
+        }
     }
     candidates.sort_by(f64::total_cmp);
     for r in candidates {
@@ -327,8 +362,9 @@ pub(crate) fn projected_frame<T: Real>(d1: V3<T>, r: DVec3) -> [V3<T>; 3] {
 /// The frame `(t, n, b)` at `u` over any [`Real`].
 ///
 /// Frenet: `t = a'/|a'|`, `b = (a' x a'')/|a' x a''|`, `n = b x t`. Where `a' x a''` vanishes
-/// at an isolated point (an inflection), the frame is the limit from the right (from the left
-/// at `u = 1`); for point-symmetric sections both limits give the same surface.
+/// at an isolated point (an inflection), the frame on each side is that side's limit, the one
+/// at the inflection itself the limit from the right ([`frenet_shift`]); for point-symmetric
+/// sections both limits give the same surface, for others the solid has a seam there.
 /// Projected: `t = a'/|a'|`, `b = (a' x r)/|a' x r|`, `n = b x t` at `u` (`a'` scaled to unit
 /// size, so no product underflows).
 #[inline]
@@ -653,8 +689,11 @@ mod tests {
             DVec3::new(0.1, 0.4, 0.4),
             DVec3::new(0.3, 1.1, 0.5),
         ]);
+        // The degenerate stretch's two ends, where the frame is taken from 1e-7 away (and moves
+        // by as much), and the inflection between them, where each side takes its own limit and
+        // the binormal flips.
         let sw = frenet_switches(&s_curve, -1e-11, 1.0 + 1e-11);
-        assert_eq!(sw.len(), 2, "{sw:?}");
+        assert_eq!(sw.len(), 3, "{sw:?}");
         for &u in &sw {
             assert!((u - 0.5).abs() < 1e-8, "{sw:?}");
             assert_ne!(
@@ -664,10 +703,29 @@ mod tests {
             );
         }
         let b = |u: f64| FrameAt::new(&s_curve, &Framing::Frenet, u).frame.b;
+        for (k, &u) in sw.iter().enumerate() {
+            let turn = b(u.next_down()).dot(b(u));
+            if k == 1 {
+                assert!(turn < -0.999, "half a turn at the inflection {u}: {turn}");
+            } else {
+                assert!(turn > 0.999, "no turn at the stretch's end {u}: {turn}");
+            }
+        }
+        // The inflection of this planar S (a' x a'' = 0 there) by bisection, independently.
+        let c = |u: f64| s_curve.d1(u).cross(s_curve.d2(u)).z;
+        let (mut a, mut bb) = (0.4, 0.6);
+        for _ in 0..80 {
+            let m = 0.5 * (a + bb);
+            if (c(m) > 0.0) == (c(a) > 0.0) {
+                a = m;
+            } else {
+                bb = m;
+            }
+        }
         assert!(
-            b(sw[0].next_down()).dot(b(sw[0])) < -0.999,
-            "half a turn at {}",
-            sw[0]
+            (sw[1] - a).abs() < 1e-15,
+            "the switch {} is the inflection {a}",
+            sw[1]
         );
         assert!(frenet_switches(&s_curve, 0.0, 0.49).is_empty(), "outside");
         let p1 = DVec3::new(0.02, 0.05, 0.01);

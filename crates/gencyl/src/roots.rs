@@ -203,6 +203,10 @@ pub struct Isolate2D {
     pub max_boxes: usize,
 }
 
+/// Roots of [`isolate_roots_2d`] closer than this many `min_width`s in both variables are
+/// taken for one: boxes at the rounding floor of `F` near a root all lead Newton's method to it.
+const DEDUPE: f64 = 1e3;
+
 /// An interval 2x2 matrix times an interval vector.
 fn mat_vec(m: [[Interval; 2]; 2], x: [Interval; 2]) -> [Interval; 2] {
     [
@@ -253,15 +257,30 @@ pub fn isolate_roots_2d<F: Function2D>(
     opts: &Isolate2D,
     out: &mut ArrayVec<[f64; 2], MAX_ROOTS>,
 ) -> bool {
+    let (lo0, hi0) = (lo, hi);
     let mut stack: ArrayVec<([f64; 2], [f64; 2]), 128> = ArrayVec::new();
     stack.push((lo, hi));
     let mut boxes = 0;
-    let push = |out: &mut ArrayVec<[f64; 2], MAX_ROOTS>, x: [f64; 2]| {
-        let near = |y: &[f64; 2]| {
-            (0..2).all(|k| (x[k] - y[k]).abs() <= 2.0 * opts.min_width[k].max(1e-15 * x[k].abs()))
-        };
-        if !out.is_full() && !out.iter().any(near) {
+    // Each root found blurs a neighbourhood: `DEDUPE` resolution widths, and at the rounding
+    // floor of F the blur Newton's method reaches through. Another root found there is the same
+    // root, and narrow boxes there are not examined again (they would all lead back to it).
+    let mut blurs: ArrayVec<([f64; 2], [f64; 2]), MAX_ROOTS> = ArrayVec::new();
+    let dedupe = |x: [f64; 2]| -> [f64; 2] {
+        std::array::from_fn(|k| DEDUPE * opts.min_width[k].max(1e-15 * x[k].abs()))
+    };
+    let near = |blurs: &ArrayVec<([f64; 2], [f64; 2]), MAX_ROOTS>, x: [f64; 2]| {
+        blurs
+            .iter()
+            .any(|(y, r)| (0..2).all(|k| (x[k] - y[k]).abs() <= r[k]))
+    };
+    let push = |out: &mut ArrayVec<[f64; 2], MAX_ROOTS>,
+                blurs: &mut ArrayVec<([f64; 2], [f64; 2]), MAX_ROOTS>,
+                x: [f64; 2],
+                blur: [f64; 2]| {
+        if !out.is_full() && !near(blurs, x) {
             out.push(x);
+            let d = dedupe(x);
+            blurs.push((x, [d[0].max(blur[0]), d[1].max(blur[1])]));
         }
     };
     while let Some((a, b)) = stack.pop() {
@@ -270,6 +289,13 @@ pub fn isolate_roots_2d<F: Function2D>(
             return false;
         }
 
+        // A box inside a found root's blur holds nothing new.
+        if blurs
+            .iter()
+            .any(|(y, r)| (0..2).all(|k| a[k] >= y[k] - r[k] && b[k] <= y[k] + r[k]))
+        {
+            continue;
+        }
         let xb = [Interval::exact(a[0], b[0]), Interval::exact(a[1], b[1])];
         let enc = f.enclose(a, b);
         if enc.f[0].excludes_zero() || enc.f[1].excludes_zero() {
@@ -281,18 +307,35 @@ pub fn isolate_roots_2d<F: Function2D>(
         let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
         let narrow = (0..2).all(|k| b[k] - a[k] <= opts.min_width[k]);
         if narrow {
-            // At the resolution of the enclosures: Newton's method from the centre, allowed a
-            // few box widths out (the root may sit on the edge), decides.
+            // At the resolution of the enclosures (or of F's rounding, which can be coarser):
+            // Newton's method from the centre decides. It may go as far as F's rounding blurs
+            // the root (`|J^-1|` times the width of F's enclosure at a point) and a few box
+            // widths, not farther: a neighbouring root is another box's.
             let w = opts.min_width;
-            let (lo, hi) = (
-                [a[0] - 4.0 * w[0], a[1] - 4.0 * w[1]],
-                [b[0] + 4.0 * w[0], b[1] + 4.0 * w[1]],
-            );
+            if near(&blurs, c) {
+                continue;
+            }
+            let floor = |i: usize| enc.f_center[i].width();
+            let reach: [f64; 2] = std::array::from_fn(|k| {
+                let blur = if det.is_finite() && det != 0.0 {
+                    let inv = [[m[1][1], -m[0][1]], [-m[1][0], m[0][0]]];
+                    (inv[k][0].abs() * floor(0) + inv[k][1].abs() * floor(1)) / det.abs()
+                } else {
+                    0.0
+                };
+                4.0 * w[k].max(b[k] - a[k]) + 8.0 * blur
+            });
+            let lo = [(a[0] - reach[0]).max(lo0[0]), (a[1] - reach[1]).max(lo0[1])];
+            let hi = [(b[0] + reach[0]).min(hi0[0]), (b[1] + reach[1]).min(hi0[1])];
             if let Some(x) = newton2(f, c, lo, hi) {
+                // A root to the resolution of the box, or of F's own rounding (the width of
+                // its enclosure at a point), whichever is coarser.
                 let (g, j) = f.jet(x);
-                if (0..2).all(|i| g[i].abs() <= 4.0 * (j[i][0].abs() * w[0] + j[i][1].abs() * w[1]))
-                {
-                    push(out, x);
+                if (0..2).all(|i| {
+                    g[i].abs()
+                        <= 4.0 * (j[i][0].abs() * w[0] + j[i][1].abs() * w[1]) + 2.0 * floor(i)
+                }) {
+                    push(out, &mut blurs, x, reach);
                 }
             }
             continue;
@@ -319,7 +362,7 @@ pub fn isolate_roots_2d<F: Function2D>(
             }
             if (0..2).all(|i| k[i].lo > a[i] && k[i].hi < b[i]) {
                 if let Some(x) = newton2(f, c, a, b) {
-                    push(out, x);
+                    push(out, &mut blurs, x, [0.0; 2]);
                 }
                 continue;
             }

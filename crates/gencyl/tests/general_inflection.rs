@@ -14,11 +14,13 @@
 //!   either side), so the trilobal surface has a seam: the normal plane at `u = 1/2` bounds the
 //!   solid where one limiting section covers it and the other does not. A ray through that part
 //!   of the plane meets only one side-surface sheet there: the reported rays' "missing" hits.
-//!   With the seam crossings counted (found here from the two limiting frames), every ray
-//!   crosses an even number of times. (Before the fix three rays still had an odd count: side
+//!   The library reports those seam crossings as `Part::Seam` hits (checked here against the two
+//!   limiting frames), so every ray crosses an even number of times. (Before the fix three rays still had an odd count: side
 //!   hits next to the seam were missed.)
 
-use gencyl::{BezierLoop, CrossSection, FiberSpec, GeneralizedCylinder, Hit, Method, Ray, Section};
+use gencyl::{
+    BezierLoop, CrossSection, FiberSpec, GeneralizedCylinder, Hit, Method, Part, Ray, Section,
+};
 use glam::{DVec2, DVec3};
 
 /// `examples/xray.toml`'s trilobal fiber, the axis' second control point moved by `dx` along x.
@@ -162,8 +164,10 @@ fn crosses_seam(cyl: &GeneralizedCylinder, ray: &Ray) -> bool {
 }
 
 /// The reported fiber: its frame flips at the inflection (the two limiting binormals are
-/// opposite), the general method's hits plus the seam crossings are even on every ray, and the
-/// two reported rays each have one side hit and one seam crossing.
+/// opposite), the general method reports the seam crossings itself ([`Part::Seam`], normal
+/// `+-t`, in the normal plane at the inflection) exactly where the independent test above finds
+/// them, every ray has an even number of hits, and the two reported rays each have one side hit
+/// and one seam hit.
 #[test]
 fn planar_inflection_parity_counts_the_seam() {
     let cyl = xray_fiber(0.0);
@@ -174,18 +178,37 @@ fn planar_inflection_parity_counts_the_seam() {
     let mut seams = 0;
     for (k, ray) in rays.iter().enumerate() {
         let hits = general_hits(&cyl, ray);
+        let mut seam_hits = 0;
         for h in &hits {
-            check_hit(&cyl, ray, h, "planar");
+            if h.part == Part::Seam {
+                seam_hits += 1;
+                // At the switch of the frame, within the stretch (1e-9 wide) around the
+                // inflection where the Frenet frame is taken from its limit.
+                assert!((h.u - 0.5).abs() < 1e-9, "seam at the inflection: {h:?}");
+                let (a, t) = (cyl.axis().point(h.u), cyl.frame(h.u).t);
+                assert!(
+                    (h.point - a).dot(t).abs() < 1e-12,
+                    "in the normal plane: {h:?}"
+                );
+                assert!(h.normal.cross(t).length() < 1e-12, "normal +-t: {h:?}");
+            } else {
+                check_hit(&cyl, ray, h, "planar");
+            }
         }
         let seam = crosses_seam(&cyl, ray);
         seams += usize::from(seam);
+        assert_eq!(
+            seam_hits,
+            usize::from(seam),
+            "ray {ray:?}: seam hits vs the seam test: {hits:?}"
+        );
         if k < 2 {
             assert!(
-                hits.len() == 1 && seam,
+                hits.len() == 2 && seam,
                 "reported ray {k}: one side hit and the seam: {hits:?}, seam {seam}"
             );
         }
-        if (hits.len() + usize::from(seam)) % 2 == 1 {
+        if hits.len() % 2 == 1 {
             odd.push(format!(
                 "  ray {:?}: seam {seam}, (t, u) {:?}",
                 ray.origin,

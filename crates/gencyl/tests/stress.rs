@@ -7,7 +7,7 @@
 //! `straight-nonunif` (0, 0.2, 0.7, 1: the issue's fiber), `hair-curved` (a curved segment of
 //! length ~0.1, r 1e-3), `tapered` (round, r 0.06 to 0.02), `ellipse` (0.06 x 0.03),
 //! `twist-ellipse` (0.06 x 0.03 turning by 3 pi), `trilobal` (a Bezier-loop profile). Methods:
-//! `Polynomial` where the section is the unit circle with equal major and minor radii, `Radial`
+//! `Round` where the section is the unit circle with equal major and minor radii, `Radial`
 //! for every unit-circle section, `General` for all (on the first `GENERAL_RAYS` rays).
 //!
 //! Families (one test each, seeded):
@@ -43,7 +43,10 @@
 //!   touches with `|n.d| < 1e-3`);
 //! * no more than two hits on one part within 1e-9 size along the ray (the others are
 //!   duplicates: a true crossing pair at the grazing depths here is >= 1e-4 radii apart);
-//! * a ray leaving the surface outward has no hit within 1e-9 size of its origin (a self-hit).
+//! * a ray leaving the surface outward has no entry within 1e-9 size of its origin (a self-hit):
+//!   it moves out of the solid, so the only crossing it can have there is an exit, where its
+//!   origin lies inside by rounding (that exit is real, at a distance below rounding, and is
+//!   allowed: a renderer that does not want it passes `tmin > 0`).
 //!
 //! Every `(family, fiber, method)` prints a `[stress]` line: rays; hits; misses (oracle crossings
 //! not matched, required entries + exits not reported, matched hits off in t by more than
@@ -56,11 +59,12 @@
 //! the oracle's grazing band; the error maxima; and the failing rays per sub-family (tilt `eps`,
 //! depth `k`, or origin kind).
 //!
-//! The tests that fail with the library before the fix of issue 8 are ignored. To print the
-//! counts of every family without asserting:
+//! Before the branch-function and prism methods (issue 8) these families lost up to half of the
+//! crossings of nearly perpendicular rays; now every line is clean. To print the counts of every
+//! family without asserting:
 //!
 //! ```sh
-//! GENCYL_STRESS_REPORT=1 cargo test --release -p gencyl --test stress -- --include-ignored --nocapture
+//! GENCYL_STRESS_REPORT=1 cargo test --release -p gencyl --test stress -- --nocapture
 //! ```
 //!
 //! `GENCYL_STRESS_SCALE` multiplies the ray counts; `GENCYL_STRESS_MESSAGES=1` prints the first
@@ -579,14 +583,14 @@ fn check_ray(p: &Prepared, hits: &[Hit], method: Method, st: &mut Stats, ex: &mu
         if h.t * r.dl <= ORIGIN_BAND * o.size {
             ex.origin_hits += 1;
         }
-        if h.t < sr.self_below {
+        if h.t < sr.self_below && h.normal.dot(r.d) < 0.0 {
             ex.self_hits += 1;
             ex.self_hits_inside += o.inside(r.o) as usize;
             st.flag_hit(h.t);
             st.fail_as(
                 "self-hit",
                 format!(
-                    "SELF-HIT: a ray leaving the surface outward hits it at t |d| = {:.2e} (<= {ORIGIN_BAND:.0e} size)\n{}\nhit {h:?}",
+                    "SELF-HIT: a ray leaving the surface outward enters it at t |d| = {:.2e} (<= {ORIGIN_BAND:.0e} size)\n{}\nhit {h:?}",
                     h.t * r.dl,
                     ctx()
                 ),
@@ -821,7 +825,6 @@ fn issue_ray() -> Ray {
 }
 
 #[test]
-#[ignore = "issue 8: fails before the fix"]
 fn near_perpendicular() {
     let start = Instant::now();
     let groups: Vec<Group> = base_fibers()
@@ -848,7 +851,6 @@ fn near_perpendicular() {
 }
 
 #[test]
-#[ignore = "issue 8: fails before the fix"]
 fn radii_range() {
     let start = Instant::now();
     let mut groups = Vec::new();
@@ -878,7 +880,6 @@ fn radii_range() {
 }
 
 #[test]
-#[ignore = "issue 8: fails before the fix"]
 fn grazing_chords() {
     let start = Instant::now();
     let mut groups: Vec<Group> = base_fibers()
@@ -909,7 +910,6 @@ fn grazing_chords() {
 }
 
 #[test]
-#[ignore = "issue 8: fails before the fix"]
 fn far_from_origin() {
     let start = Instant::now();
     let groups: Vec<Group> = base_fibers()
@@ -934,7 +934,6 @@ fn far_from_origin() {
 }
 
 #[test]
-#[ignore = "issue 8: fails before the fix"]
 fn surface_origins() {
     let start = Instant::now();
     let groups: Vec<Group> = base_fibers()
@@ -947,7 +946,6 @@ fn surface_origins() {
 
 /// The ray of the issue, by every method: two side hits at `t = 1 -+ sqrt(0.04^2 - 0.01^2)`.
 #[test]
-#[ignore = "issue 8: fails before the fix"]
 fn issue_reproducer() {
     let f = fib(base_fibers().swap_remove(1));
     assert_eq!(f.case.name, "straight-nonunif");

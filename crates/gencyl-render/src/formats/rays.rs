@@ -25,7 +25,7 @@
 //!
 //! CSV, the header `ray,t,u,v,nx,ny,nz,object,part`, then one row per hit: the ray's number,
 //! the hit's `t`, `u`, `v`, unit outward normal, cylinder number and part (0 side, 1 cap at
-//! `u = 0`, 2 cap at `u = 1`). Numbers are written in the shortest form that reads back to
+//! `u = 0`, 2 cap at `u = 1`, 3 seam). Numbers are written in the shortest form that reads back to
 //! the same `f64` (so with full precision), in exponent form below `1e-7` or from `1e16` in
 //! magnitude, and `-0` as `0`.
 
@@ -170,6 +170,7 @@ pub fn format_row(s: &mut String, ray: usize, h: &SceneHit) {
         Part::Side => 0,
         Part::StartCap => 1,
         Part::EndCap => 2,
+        Part::Seam => 3,
     };
     let n = x.normal;
     let _ = writeln!(

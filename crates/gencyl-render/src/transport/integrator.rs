@@ -72,6 +72,7 @@ pub fn sample_ray(
                         Part::Side => 0.0,
                         Part::StartCap => 0.5,
                         Part::EndCap => 1.0,
+                        Part::Seam => 1.5,
                     };
                     DVec3::new(u, v / std::f64::consts::TAU, p)
                 }

@@ -19,14 +19,14 @@
 //!
 //! The frame, and with it `phi`, may jump where [`frenet_shift`](crate::frame) switches (at an
 //! inflection of a planar axis it turns by a half turn there: for a section that is not
-//! point-symmetric the swept surface itself is discontinuous, see [`frenet_switches`]); `phi`
+//! point-symmetric the swept surface itself is discontinuous, see [`frenet_switches`](crate::frame::frenet_switches)); `phi`
 //! is split there so that no model spans a jump.
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use crate::cylinder::GeneralizedCylinder;
-use crate::frame::{Framing, frenet_switches};
+use crate::frame::Framing;
 use crate::real::{Dual, Real, Taylor, V2};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
@@ -138,6 +138,7 @@ struct PhiCurve<'a, C, S> {
     d: DVec3,
 }
 
+#[cfg(test)]
 impl<C: CrossSection, S: SweepRule> PhiCurve<'_, C, S> {
     /// A bound on the rounding error of `phi(u)` in `f64`: the remainder of its Taylor model
     /// over the single point `u`.
@@ -310,6 +311,9 @@ struct Intersector<'a, C, S> {
     found: &'a mut Found,
     /// The section's bounding radius: the scale of both curves.
     scale: f64,
+    /// The stretch of `u` and the monotone piece of the section being intersected.
+    stretch: (f64, f64),
+    piece: (f64, f64),
 }
 
 /// A piece of `phi` and, once computed, its halves: the subdivision of `phi` (a Taylor model
@@ -405,45 +409,29 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
         {
             return;
         }
-        let mut u = a.s0 + alpha.clamp(0.0, 1.0) * (a.s1 - a.s0);
-        let mut v = b.s0 + beta.clamp(0.0, 1.0) * (b.s1 - b.s0);
-        let mut residual = f64::INFINITY;
-        // How much G moves over an ulp of u and of v: where phi is fast (1e7 per unit of u
-        // where the frame turns quickly) no f64 u brings the residual below that.
-        let mut resolution = 0.0;
-        for _ in 0..50 {
-            let ((p, dp), (c, dc)) = (self.phi.eval(u), self.cs.eval(v));
-            let g = p - c;
-            residual = g.length();
-            resolution = f64::EPSILON * (dp.length() * u.abs() + dc.length() * v.abs());
-            let det = dp.perp_dot(-dc);
-            if det == 0.0 || !det.is_finite() {
-                break;
+        // The pair's roots by interval Newton on the prism system ([`super::prism`]) over the
+        // pieces' ranges grown by the chords' slack: it separates the two roots of a
+        // near-tangency, which Newton's method on `phi(u) = cs(v)` from one start merges.
+        // (A root beyond the pieces' ends lies in a neighbouring pair, which finds it: the
+        // ranges grow only by a tenth, so the box holds about one tangency's worth of E.)
+        let grow = |s0: f64, s1: f64, (lo, hi): (f64, f64)| {
+            let w = (s1 - s0) * 0.1;
+            ((s0 - w).max(lo), (s1 + w).min(hi))
+        };
+        let (u0, u1) = grow(a.s0, a.s1, self.stretch);
+        let (v0, v1) = grow(b.s0, b.s1, self.piece);
+        let mut roots = ArrayVec::<(f64, f64), 16>::new();
+        let phi = &self.phi;
+        super::prism::box_roots(phi.cyl, phi.o, phi.d, [u0, v0], [u1, v1], &mut roots);
+        for (u, v) in roots {
+            let v = v.rem_euclid(std::f64::consts::TAU);
+            if u >= self.range.0
+                && u <= self.range.1
+                && !self.found.is_full()
+                && !is_known(self.found, u, v)
+            {
+                self.found.push((u, v));
             }
-            // [dp -dc] (du, dv) = g
-            let du = g.perp_dot(-dc) / det;
-            let dv = dp.perp_dot(g) / det;
-            u -= du;
-            v -= dv;
-            if du.abs() <= 1e-16 * (1.0 + u.abs()) && dv.abs() <= 1e-16 * (1.0 + v.abs()) {
-                residual = (self.phi.eval(u).0 - self.cs.eval(v).0).length();
-                break;
-            }
-        }
-        let v = v.rem_euclid(std::f64::consts::TAU);
-        let mut tolerance = 1e-9 + 4.0 * resolution;
-        if residual > tolerance && residual < 1e-6 {
-            // Near an inflection of the axis phi itself carries rounding noise (see
-            // `split_phi`), which no (u, v) gets below.
-            tolerance += 2.0 * self.phi.noise(u);
-        }
-        if residual <= tolerance
-            && u >= self.range.0
-            && u <= self.range.1
-            && !self.found.is_full()
-            && !is_known(self.found, u, v)
-        {
-            self.found.push((u, v));
         }
     }
 }
@@ -466,7 +454,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let mut stretches: ArrayVec<(f64, f64), 9> = ArrayVec::new();
     let mut start = lo;
     if let Framing::Frenet = cyl.framing {
-        for s in frenet_switches(&cyl.axis, lo, hi) {
+        for s in cyl.switches_in(lo, hi) {
             stretches.push((start, s.next_down()));
             start = s;
         }
@@ -479,18 +467,22 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         range: valid,
         found,
         scale,
+        stretch: (lo, hi),
+        piece: (0.0, 0.0),
     };
     let vb = cyl.section.monotone_breaks();
     for (u0, u1) in stretches {
         if !(u0 < u1) {
             continue;
         }
+        it.stretch = (u0, u1);
         let a = it.phi.piece(u0, u1);
         if !(a.p0.is_finite() && a.p1.is_finite()) {
             continue;
         }
         let mut root = PhiNode::new(a);
         for vw in vb.windows(2) {
+            it.piece = (vw[0], vw[1]);
             let b = it.cs.piece(vw[0], vw[1]);
             it.intersect(&mut root, b, 0);
         }
@@ -605,6 +597,11 @@ mod tests {
             for (k, w) in [1e-2, 1e-4, 1e-6, 1e-8, 1e-10].into_iter().enumerate() {
                 for j in 0..7 {
                     let u0 = 0.5 - w * (0.13 + 0.31 * j as f64 + 0.05 * k as f64);
+                    // Pieces are never taken across a switch of the frame (the intersector
+                    // splits there), where the piece's enclosure would hold one side only.
+                    if cyl.switches_in(u0, u0 + w).next().is_some() {
+                        continue;
+                    }
                     let p = phi.piece(u0, u0 + w);
                     if !p.flat.is_finite() || p.flat >= 1.0 {
                         continue;

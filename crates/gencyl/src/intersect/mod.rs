@@ -28,7 +28,7 @@ use glam::{DVec2, DVec3};
 
 use crate::bernstein::Bernstein;
 use crate::cylinder::{GeneralizedCylinder, Hit, Part, Ray, v2};
-use crate::frame::{Framing, frenet_switches};
+use crate::frame::Framing;
 use crate::real::{Real, V2};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots};
 use crate::section::CrossSection;
@@ -58,6 +58,10 @@ pub enum Method {
 /// Roots are searched on `[-U_MARGIN, 1 + U_MARGIN]` and clamped to `[0, 1]`, so a ray through
 /// the joint of two strand segments is not lost between them to rounding.
 pub(crate) const U_MARGIN: f64 = 1e-11;
+
+/// Hits closer than this (relative to the fiber's size) along the ray, on the same part and
+/// side, are one crossing (see [`GeneralizedCylinder::intersect_all_with`]).
+const DUPLICATE: f64 = 1e-9;
 
 /// How far off perpendicular to the axis (as `|a'.d| / (|a'| |d|)`) a ray must be on a range
 /// for [`Method::Radial`] to isolate `g(u)` there instead of its branch functions. The one-variable
@@ -229,7 +233,88 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 }
             }
         }
+        if self.may_fold() {
+            for (w, u, v, normal) in self.envelope_roots(o, d) {
+                let t = t0 + w;
+                if t > tmin && t < tmax {
+                    out.push(Hit {
+                        t,
+                        u,
+                        v,
+                        point: ray.at(t),
+                        normal,
+                        part: Part::Seam,
+                    });
+                }
+            }
+        }
+        // A round section turns into itself: no frame jump leaves a seam.
+        if !(self.section.is_unit_circle() && self.sweep.uniform_scale().is_some()) {
+            for s in self.switches_in(0.0, 1.0) {
+                if let Some((w, v, normal)) = self.seam_root(o, d, s) {
+                    let t = t0 + w;
+                    if t > tmin && t < tmax {
+                        out.push(Hit {
+                            t,
+                            u: s,
+                            v,
+                            point: ray.at(t),
+                            normal,
+                            part: Part::Seam,
+                        });
+                    }
+                }
+            }
+        }
         out[start..].sort_by(|a, b| a.t.total_cmp(&b.t));
+        // One crossing found twice (from neighbouring pieces or boxes where the hit is
+        // ill-conditioned along the ray): hits within DUPLICATE of the fiber's size along the
+        // ray, on the same part and the same side of the surface, are one. (An entry and an
+        // exit that close stay two: their normals face opposite ways along the ray.)
+        let close = DUPLICATE * (self.bounds().max - self.bounds().min).length() / d.length();
+        let mut kept = start;
+        for i in start..out.len() {
+            let h = out[i];
+            let same = |k: &Hit| {
+                (h.t - k.t).abs() <= close
+                    && h.part == k.part
+                    && (h.normal.dot(d) > 0.0) == (k.normal.dot(d) > 0.0)
+            };
+            if kept > start && same(&out[kept - 1]) {
+                continue;
+            }
+            out[kept] = h;
+            kept += 1;
+        }
+        out.truncate(kept);
+        if self.may_fold() {
+            self.keep_boundary_crossings(start, out);
+        }
+    }
+
+    /// Where the surface folds through the solid, keeps only the hits on its boundary
+    /// (interface.md 3, errata 5), with their normals pointing out: a hit whose point moved a
+    /// little along its normal leaves the solid is kept; one with solid on both sides lies on a
+    /// sheet of the surface that passes through the solid and is dropped; one with solid only
+    /// ahead lies on a sheet turned inside out beyond a fold edge, and its normal is flipped.
+    /// ([`Self::contains`] decides; the probe is a millionth of the thinnest section's reach,
+    /// far above the hits' error.)
+    fn keep_boundary_crossings(&self, start: usize, out: &mut Vec<Hit>) {
+        let [l0, l1] = self.sweep.scale_bound();
+        let step = 1e-6 * l0.min(l1) * self.section.bounding_radius();
+        let mut kept = start;
+        for i in start..out.len() {
+            let mut h = out[i];
+            if self.contains(h.point + step * h.normal) {
+                if self.contains(h.point - step * h.normal) {
+                    continue;
+                }
+                h.normal = -h.normal;
+            }
+            out[kept] = h;
+            kept += 1;
+        }
+        out.truncate(kept);
     }
 
     fn resolve(&self, method: Method) -> Method {
@@ -282,7 +367,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 // Frenet frame (the sphere of a round fiber does not turn).
                 let mut start = a;
                 if matches!(self.framing, Framing::Frenet) {
-                    for s in frenet_switches(&self.axis, a, b) {
+                    for s in self.switches_in(a, b) {
                         quad.roots(start, s.next_down(), out);
                         start = s;
                     }
@@ -340,6 +425,99 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 v: crate::section::angle(DVec2::new(qphi.x / q, qphi.y / q)),
             });
         }
+    }
+
+    /// The seam at a frame jump `s` ([`Part::Seam`]): the ray meets the normal plane there at
+    /// `w = a'.(a - o) / a'.d`; in the frames just before and at `s` its point has the section
+    /// coordinates `phiL`, `phiR`; it is on the seam when exactly one of them lies in the section,
+    /// with the outward normal `+t` if the solid is on the side before `s` (`phiL` inside), `-t`
+    /// otherwise, and `v` the angle on that side. A ray in the plane (`a'.d = 0`) meets the seam
+    /// only along a line of measure zero and gets no seam hit.
+    fn seam_root(&self, o: DVec3, d: DVec3, s: f64) -> Option<(f64, f64, DVec3)> {
+        let d1 = self.axis.d1(s);
+        let q = d1.dot(d);
+        if !(q.abs() > 1e-13 * d1.length() * d.length()) {
+            return None;
+        }
+        let a = self.axis.point(s);
+        let w = d1.dot(a - o) / q;
+        let e = o + w * d - a;
+        let local = |u: f64| {
+            let f = self.frame(u);
+            v2(self.sweep.inverse(s, V2::new(f.n.dot(e), f.b.dot(e))))
+        };
+        let (left, right) = (local(s.next_down()), local(s));
+        let (inl, inr) = (self.section.contains(left), self.section.contains(right));
+        if inl == inr || !w.is_finite() {
+            return None;
+        }
+        let t = d1 / d1.length();
+        let (normal, phi) = if inl { (t, left) } else { (-t, right) };
+        Some((w, crate::section::angle(phi), normal))
+    }
+
+    /// Where the solid folds, the other part of a normal plane that bounds it: the envelope of
+    /// the normal planes. A point of the ray lies in the normal plane at `u` where
+    /// `G(u, w) = N(u) + w q(u) = 0` (`N = a'.(o - a)`, `q = a'.d`); that family of planes has its
+    /// envelope (the polar developable, at the axis' centres of curvature) where also
+    /// `dG/du = N' + w q' = 0`, i.e. at the roots of `P = N' q - N q'` (degree 6, in Bernstein
+    /// form), with `w = -N/q`. Where the section there holds the point, crossing the envelope
+    /// adds or removes a normal plane through the ray's point that holds it: the point enters
+    /// or leaves the solid there unless another plane holds it (the caller keeps only true
+    /// boundary crossings). The normal is `+-t(u)`, toward the side the solid is not on.
+    fn envelope_roots(&self, o: DVec3, d: DVec3) -> ArrayVec<(f64, f64, f64, DVec3), 8> {
+        let mut out = ArrayVec::new();
+        let p = self.axis.points;
+        let h = self.axis.hodograph();
+        let h2 = self.axis.second_hodograph();
+        let coord = |k: usize| {
+            let e = Bernstein(p.map(|c| o[k] - c[k]));
+            let n: Bernstein<6> = Bernstein(h.map(|v| v[k])).mul(&e);
+            let n2: Bernstein<5> = Bernstein(h2.map(|v| v[k])).mul(&e);
+            (n, n2)
+        };
+        let (x, y, z) = (coord(0), coord(1), coord(2));
+        let big_n = x.0.add(&y.0).add(&z.0);
+        let speed2: Bernstein<5> = [0, 1, 2]
+            .map(|k| {
+                let hk = Bernstein(h.map(|v| v[k]));
+                hk.mul::<3, 5>(&hk)
+            })
+            .iter()
+            .fold(Bernstein([0.0; 5]), |s, b| s.add(b));
+        // N' = a''.(o - a) - |a'|^2.
+        let dn = x.1.add(&y.1).add(&z.1).sub(&speed2);
+        let q = Bernstein(h.map(|v| v.dot(d)));
+        let dq: Bernstein<2> = q.derivative();
+        let a: Bernstein<7> = dn.mul(&q);
+        let b: Bernstein<7> = big_n.mul(&dq);
+        let poly = a.sub(&b);
+        let err = 1e-13 * (a.magnitude() + b.magnitude());
+        let mut us = ArrayVec::new();
+        poly.roots(&poly.derivative::<6>(), err, 1e-15, 400, &mut us);
+        let [l0, l1] = self.sweep.scale_bound();
+        let step = 1e-6 * l0.min(l1) * self.section.bounding_radius();
+        for u in us {
+            let qu = q.eval(u);
+            if !(qu.abs() > 1e-13 * self.q_scale(d)) {
+                continue;
+            }
+            let w = -big_n.eval(u) / qu;
+            let e = o + w * d - self.axis.point(u);
+            let f = self.frame(u);
+            let phi = v2(self.sweep.inverse(u, V2::new(f.n.dot(e), f.b.dot(e))));
+            if !w.is_finite() || !self.section.contains(phi) || out.is_full() {
+                continue;
+            }
+            let x = self.origin + o + w * d;
+            let t = f.t;
+            let (before, after) = (self.contains(x - step * t), self.contains(x + step * t));
+            if before != after {
+                let normal = if before { t } else { -t };
+                out.push((w, u, crate::section::angle(phi), normal));
+            }
+        }
+        out
     }
 
     /// The cap at `u = 0` or `1`: the plane `t.(x - a) = 0` meets the ray at

@@ -190,48 +190,6 @@ impl Cell {
     }
 }
 
-/// The roots of `D` in `(0, 1)`, ascending: cells whose coefficients have no sign change hold
-/// none, one sign change exactly one (Descartes' rule for the Bernstein basis), found by
-/// bisection and Newton steps; a cell narrower than [`MIN_WIDTH`] with a sign change between
-/// its ends gives one root.
-fn disc_roots(k: &Polys, out: &mut ArrayVec<f64, 16>) {
-    let f = |s: f64| (k.disc.eval(s), k.disc_s.eval(s));
-    let err = k.err_disc;
-    let mut stack: ArrayVec<(B7, f64, f64), 64> = ArrayVec::new();
-    stack.push((k.disc, 0.0, 1.0));
-    let mut cells = 0;
-    while let Some((b, s0, s1)) = stack.pop() {
-        cells += 1;
-        let (lo, hi) = b.range();
-        if lo - err > 0.0 || hi + err < 0.0 {
-            continue;
-        }
-        let clear = b.0.iter().all(|c| c.abs() > err);
-        let changes =
-            b.0.windows(2)
-                .filter(|w| (w[0] > 0.0) != (w[1] > 0.0))
-                .count();
-        let narrow = s1 - s0 <= MIN_WIDTH || cells > BUDGET || stack.is_full();
-        if (clear && changes == 1) || narrow {
-            let (fa, fb) = (f(s0).0, f(s1).0);
-            if let Some(r) = bracketed_root(&f, s0, s1, fa, fb)
-                && !out.is_full()
-                && out.last().is_none_or(|&l| r > l)
-            {
-                out.push(r);
-            }
-            continue;
-        }
-        if clear && changes == 0 {
-            continue;
-        }
-        let m = 0.5 * (s0 + s1);
-        let (l, r) = b.split(0.5);
-        stack.push((r, m, s1));
-        stack.push((l, s0, m));
-    }
-}
-
 /// Isolates the roots of branch `sign` on the stretch `[a, b]` (where `D >= 0`), ascending.
 fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16>) {
     let value = |s: f64| k.branch(s, sign);
@@ -290,7 +248,8 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let mut ends: ArrayVec<f64, 18> = ArrayVec::new();
     ends.push(0.0);
     let mut zs = ArrayVec::new();
-    disc_roots(&k, &mut zs);
+    k.disc
+        .roots(&k.disc_s, k.err_disc, MIN_WIDTH, BUDGET, &mut zs);
     ends.extend(zs);
     ends.push(1.0);
     let len = d.length();
