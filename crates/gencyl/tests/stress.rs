@@ -850,6 +850,60 @@ fn near_perpendicular() {
     run_family("near-perpendicular", &groups, start);
 }
 
+/// The three methods agree with each other on round fibers in the near-perpendicular band
+/// (each is also checked against the oracle above): the same hits, `t` within `1e-12` of the
+/// fiber's size along the ray, `u` within `1e-9`, the same parts.
+#[test]
+fn methods_agree_near_perpendicular() {
+    let mut compared = 0;
+    for (i, c) in base_fibers().into_iter().enumerate() {
+        if !(c.spec.major_radius == c.spec.minor_radius
+            && matches!(c.spec.section, Section::Circle(_)))
+        {
+            continue;
+        }
+        let f = fib(c);
+        let mut rng = Rng::new(700 + i as u64);
+        for k in 0..ray_count(400) {
+            let sr = near_perpendicular_ray(&f.o, &mut rng);
+            let hits = |m: Method| {
+                let mut h = Vec::new();
+                f.cyl
+                    .intersect_all_with(&sr.ray, 0.0, f64::INFINITY, m, &mut h);
+                h
+            };
+            let round = hits(Method::Round);
+            // The general method (slower) on every fourth ray.
+            let mut others = vec![(Method::Radial, hits(Method::Radial))];
+            if k % 4 == 0 {
+                others.push((Method::General, hits(Method::General)));
+            }
+            for (m, other) in others {
+                assert_eq!(
+                    round.len(),
+                    other.len(),
+                    "{} {m:?} vs Round: {other:?} vs {round:?}\nray {:?} ({})",
+                    f.case.name,
+                    sr.ray,
+                    sr.kind
+                );
+                for (a, b) in round.iter().zip(&other) {
+                    let dt = (a.t - b.t).abs() * sr.ray.dir.length() / f.o.size;
+                    assert!(
+                        dt <= 1e-12 && (a.u - b.u).abs() <= 1e-9 && a.part == b.part,
+                        "{} {m:?} vs Round: {b:?} vs {a:?} (dt {dt:.1e} size)\nray {:?} ({})",
+                        f.case.name,
+                        sr.ray,
+                        sr.kind
+                    );
+                }
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared > 1000, "{compared} comparisons");
+}
+
 #[test]
 fn radii_range() {
     let start = Instant::now();
