@@ -225,14 +225,35 @@ pub(crate) const FRENET_DEGENERATE: f64 = 1e-9;
 /// each side of an inflection takes its own limit and the frame switches exactly at the
 /// inflection, where `|a' x a''|` is least (and at a strand's end, inward). With `a'` and `a''`
 /// scaled to unit size ([`CubicBezier::derivative_scales`]) at any scale of the curve.
+///
+/// The test `|a' x a''| > FRENET_DEGENERATE |a'| max|a''|` is first made on the unscaled
+/// squares, which decide it wherever they neither underflow nor overflow (the usual case, and
+/// the cheap one); otherwise on the scaled vectors.
 pub(crate) fn frenet_shift(axis: &CubicBezier, u: f64) -> f64 {
-    let [k1, k2] = axis.derivative_scales();
-    let d1 = axis.d1(u) * k1;
-    let c = d1.cross(axis.d2(u) * k2);
-    let scale = d1.length() * axis.d2(0.0).length().max(axis.d2(1.0).length()) * k2;
-    if c.length() > FRENET_DEGENERATE * scale {
+    let [h0, h1] = axis.second_hodograph();
+    let (d1, d2) = (axis.d1(u), axis.d2(u));
+    let (s1, m2) = (
+        d1.length_squared(),
+        h0.length_squared().max(h1.length_squared()),
+    );
+    let bound = FRENET_DEGENERATE * FRENET_DEGENERATE * s1 * m2;
+    // With |a'|^2, max|a''|^2 and the bound in range no product over- or underflows beyond
+    // what the comparison can see.
+    let representable = |x: f64| x > 1e-250 && x < 1e250;
+    let degenerate = if representable(s1) && representable(m2) && representable(bound) {
+        !(d1.cross(d2).length_squared() > bound)
+    } else {
+        let [k1, k2] = axis.derivative_scales();
+        let d1 = d1 * k1;
+        let c = d1.cross(d2 * k2);
+        let scale = d1.length() * (h0 * k2).length().max((h1 * k2).length());
+        !(c.length() > FRENET_DEGENERATE * scale)
+    };
+    if !degenerate {
         return 0.0;
     }
+    let [k1, k2] = axis.derivative_scales();
+    let (d1, c) = (d1 * k1, (d1 * k1).cross(d2 * k2));
     let grows = c.dot(d1.cross(axis.third_derivative() * k2)) >= 0.0;
     let s = if grows { 1e-7 } else { -1e-7 };
     if u + s > 1.0 {

@@ -29,19 +29,38 @@ const RESOLUTION: f64 = 1.0 / 256.0;
 /// Most separate ranges reported; beyond it the last range is stretched to cover the rest.
 pub(crate) const MAX_RANGES: usize = 16;
 
+/// `C(i, j) / C(DEGREE, j)`, the weights of [`to_bernstein`].
+const WEIGHTS: [[f64; DEGREE + 1]; DEGREE + 1] = {
+    let mut binom = [[0.0f64; DEGREE + 1]; DEGREE + 1];
+    let mut n = 0;
+    while n <= DEGREE {
+        binom[n][0] = 1.0;
+        let mut k = 1;
+        while k <= n {
+            binom[n][k] = binom[n - 1][k - 1] + if k < n { binom[n - 1][k] } else { 0.0 };
+            k += 1;
+        }
+        n += 1;
+    }
+    let mut w = [[0.0f64; DEGREE + 1]; DEGREE + 1];
+    let mut i = 0;
+    while i <= DEGREE {
+        let mut j = 0;
+        while j <= i {
+            w[i][j] = binom[i][j] / binom[DEGREE][j];
+            j += 1;
+        }
+        i += 1;
+    }
+    w
+};
+
 /// Power-basis coefficients to Bernstein coefficients on `[0, 1]`:
 /// `b_i = sum_{j <= i} C(i, j) / C(n, j) a_j`.
 fn to_bernstein(a: &[f64; DEGREE + 1]) -> Bernstein {
-    let mut binom = [[0.0f64; DEGREE + 1]; DEGREE + 1];
-    for n in 0..=DEGREE {
-        binom[n][0] = 1.0;
-        for k in 1..=n {
-            binom[n][k] = binom[n - 1][k - 1] + if k < n { binom[n - 1][k] } else { 0.0 };
-        }
-    }
     let mut b = [0.0; DEGREE + 1];
     for (i, bi) in b.iter_mut().enumerate() {
-        *bi = (0..=i).map(|j| binom[i][j] / binom[DEGREE][j] * a[j]).sum();
+        *bi = (0..=i).map(|j| WEIGHTS[i][j] * a[j]).sum();
     }
     b
 }
