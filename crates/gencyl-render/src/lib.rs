@@ -15,7 +15,8 @@
 //!   CSV, images (PNG, EXR), errors located in a text file.
 //! - [`accel`]: ray queries on geometry: the cylinders under a BVH with a ray-space cull
 //!   ([`accel::Scene`]), the analytic sphere and plane.
-//! - [`settings`], [`sampling`]: plain render settings; random streams and warps (leaves).
+//! - [`settings`], [`sampling`], [`limits`]: plain render settings; random streams and warps;
+//!   the limits on input and memory (leaves).
 //!
 //! So a new light type goes in `optics/light.rs` (and its table in `scene_file/lights.rs`), a new
 //! file format in `formats/`, a new BVH node layout in `accel/bvh/`, a new integrator in
@@ -41,6 +42,7 @@
 
 pub mod accel;
 pub mod formats;
+pub mod limits;
 pub mod optics;
 pub mod raycast;
 pub mod sampling;

@@ -158,6 +158,52 @@ pub enum GeometryError {
     /// The sweep rule is unusable.
     #[error("{0}")]
     Sweep(String),
+    /// A size beyond what the geometry core resolves in f64 ([`crate::limits`]).
+    #[error("{0}")]
+    Unresolvable(String),
+}
+
+/// The checks of [`crate::limits`]: coordinates, the section's reach against the axis' extent,
+/// the thinnest section against the fiber's scale.
+fn check_resolvable<C: CrossSection, S: SweepRule>(
+    axis: &CubicBezier,
+    extent: f64,
+    section: &C,
+    sweep: &S,
+) -> Result<(), GeometryError> {
+    use crate::limits::*;
+    let far = axis
+        .points
+        .iter()
+        .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
+    let bad = |m: String| Err(GeometryError::Unresolvable(m));
+    if far > MAX_COORDINATE {
+        return bad(format!(
+            "the axis reaches {} from the origin, more than {MAX_COORDINATE:.0e}: {WHY_COORDINATE}",
+            short(far)
+        ));
+    }
+    let [l0, l1] = sweep.scale_bound();
+    let reach = l0.max(l1) * section.bounding_radius();
+    if !(reach <= MAX_SECTION_TO_AXIS * extent) {
+        return bad(format!(
+            "the section reaches {} from the axis, more than {MAX_SECTION_TO_AXIS:.0e} times the axis' extent {}: {WHY_SECTION_TO_AXIS}",
+            short(reach),
+            short(extent)
+        ));
+    }
+    if let Some(least) = sweep.least_scale() {
+        let thin = least * section.bounding_radius();
+        let scale = far.max(extent);
+        if !(thin >= MIN_RESOLVED * scale) {
+            return bad(format!(
+                "the section is {} thin at its thinnest, less than {MIN_RESOLVED:.0e} of the fiber's scale {}: {WHY_RESOLVED}",
+                short(thin),
+                short(scale)
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// A cusp is `min |a'| <= CUSP_TOLERANCE * max |hodograph point|`.
@@ -304,6 +350,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         if extent == 0.0 {
             return Err(GeometryError::ZeroLengthAxis);
         }
+        check_resolvable(&axis, extent, &section, &sweep)?;
         // The cusp test is scale-free: run it on the axis scaled to unit extent, so squared
         // speeds cannot overflow or underflow.
         let unit = CubicBezier::new(local.points.map(|p| p / extent));

@@ -21,10 +21,12 @@
 //! ```
 
 pub mod bernstein;
+pub mod budget;
 pub mod curve;
 pub mod cylinder;
 pub mod frame;
 pub mod intersect;
+pub mod limits;
 pub mod real;
 pub mod roots;
 pub mod section;

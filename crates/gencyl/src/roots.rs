@@ -109,6 +109,9 @@ pub fn isolate_roots<F: Function1D>(
         evaluations += 1;
         if evaluations > opts.max_evaluations {
             // Out of budget: fall back to sign changes at the ends for what is left.
+            if complete {
+                crate::budget::note_exhausted();
+            }
             complete = false;
             if let Some(r) = bracketed_root(&value, a, b, fa, fb) {
                 push_root(out, r);
@@ -286,6 +289,7 @@ pub fn isolate_roots_2d<F: Function2D>(
     while let Some((a, b)) = stack.pop() {
         boxes += 1;
         if boxes > opts.max_boxes {
+            crate::budget::note_exhausted();
             return false;
         }
 
@@ -379,6 +383,7 @@ pub fn isolate_roots_2d<F: Function2D>(
         }
         let (a, b) = next;
         if stack.len() + 2 > stack.capacity() {
+            crate::budget::note_exhausted();
             return false;
         }
         // Halve across the side along which F varies more over the box (the larger "smear"

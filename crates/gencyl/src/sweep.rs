@@ -22,6 +22,12 @@ pub trait SweepRule {
     fn uniform_scale(&self) -> Option<[f64; 2]> {
         None
     }
+    /// A lower bound of the rule's least stretch over `u in [0, 1]`, `min |s(p, u)| / |p|`,
+    /// if the rule knows one: the thinnest the section gets, for the resolution check of
+    /// [`crate::limits`].
+    fn least_scale(&self) -> Option<f64> {
+        None
+    }
     /// Why the rule is unusable (non-positive or non-finite radii, say), if it is.
     fn validate(&self) -> Result<(), String> {
         Ok(())
@@ -107,6 +113,16 @@ impl SweepRule for HairSweep {
         1.0
     }
 
+    /// `A` and `B` are linear in `u`, so their least values are at the ends.
+    fn least_scale(&self) -> Option<f64> {
+        Some(
+            self.major
+                .into_iter()
+                .chain(self.minor)
+                .fold(f64::INFINITY, f64::min),
+        )
+    }
+
     fn uniform_scale(&self) -> Option<[f64; 2]> {
         self.is_circular().then_some(self.major)
     }
@@ -125,6 +141,24 @@ impl SweepRule for HairSweep {
             if !k.iter().all(|&x| x > 0.0) {
                 return Err(format!("{name} must be positive at both ends, got {k:?}"));
             }
+            let taper = k[0].max(k[1]) / k[0].min(k[1]);
+            if !(taper <= crate::limits::MAX_TAPER) {
+                return Err(format!(
+                    "{name} changes by a factor of {} along the segment, more than {:.0e}: {}",
+                    crate::limits::short(taper),
+                    crate::limits::MAX_TAPER,
+                    crate::limits::WHY_TAPER
+                ));
+            }
+        }
+        let turn = self.rotation[0].abs().max(self.rotation[1].abs());
+        if !(turn <= crate::limits::MAX_TWIST) {
+            return Err(format!(
+                "rotation reaches {} rad, more than {:.0e}: {}",
+                crate::limits::short(turn),
+                crate::limits::MAX_TWIST,
+                crate::limits::WHY_TWIST
+            ));
         }
         Ok(())
     }

@@ -30,7 +30,9 @@
 //! magnitude, and `-0` as `0`.
 
 use std::fmt;
-use std::io::{self, BufRead};
+use std::io::{self, BufRead, Read};
+
+use crate::limits::MAX_RAY_LINE;
 
 use gencyl::{Part, Ray};
 use glam::DVec3;
@@ -69,23 +71,27 @@ pub fn read_rays(path: &str) -> Result<Vec<Ray>, RayFileError> {
     if path == "-" {
         parse_rays(io::stdin().lock(), "<stdin>")
     } else {
-        let f = std::fs::File::open(path).map_err(|error| RayFileError::Read {
+        let read_err = |error| RayFileError::Read {
             path: path.to_string(),
             error,
-        })?;
+        };
+        crate::limits::check_readable(std::path::Path::new(path)).map_err(read_err)?;
+        let f = std::fs::File::open(path).map_err(read_err)?;
         parse_rays(io::BufReader::with_capacity(1 << 16, f), path)
     }
 }
 
 /// Parses a ray file from `reader`; `name` is the file's name for messages. Reads line by
-/// line, so only the rays are held in memory.
+/// line, so only the rays are held in memory; a line longer than
+/// [`crate::limits::MAX_RAY_LINE`] bytes is an error, and so are more rays than memory holds.
 pub fn parse_rays(mut reader: impl BufRead, name: &str) -> Result<Vec<Ray>, RayFileError> {
     let mut rays = Vec::new();
     let mut buf = Vec::new();
     let mut line_no = 0;
     loop {
         buf.clear();
-        let n = reader
+        let n = (&mut reader)
+            .take(MAX_RAY_LINE as u64 + 1)
             .read_until(b'\n', &mut buf)
             .map_err(|error| RayFileError::Read {
                 path: name.to_string(),
@@ -100,6 +106,18 @@ pub fn parse_rays(mut reader: impl BufRead, name: &str) -> Result<Vec<Ray>, RayF
             line: line_no,
             message,
         };
+        if buf.len() > MAX_RAY_LINE && buf.last() != Some(&b'\n') {
+            return Err(bad(format!(
+                "the line is longer than {MAX_RAY_LINE} bytes (a ray is six numbers)"
+            )));
+        }
+        if rays.len() == rays.capacity() && rays.try_reserve(rays.len().max(1024)).is_err() {
+            return Err(bad(format!(
+                "{} rays read: no memory for more ({} each)",
+                rays.len(),
+                std::mem::size_of::<Ray>()
+            )));
+        }
         let Ok(text) = std::str::from_utf8(&buf) else {
             return Err(bad("the line is not valid UTF-8 text".to_string()));
         };

@@ -236,12 +236,27 @@ pub(super) fn build_cylinder(
         section: section(&c.profile)?,
     };
     spec.build().map_err(|e| {
+        let msg = e.to_string();
+        // Sweep messages start with the key they are about; the section's size is the radii's.
+        let key = |name: &str| msg.starts_with(name);
         let span = match (&e, &c.normal_hint) {
             (GeometryError::BadNormalHint, Some(h)) => h.span(),
-            (GeometryError::Sweep(_), _) => table,
+            (GeometryError::Sweep(_) | GeometryError::Unresolvable(_), _) => {
+                if key("minor_radius") {
+                    c.minor_radius.as_ref().map_or(table, Spanned::span)
+                } else if key("rotation") {
+                    c.rotation.as_ref().map_or(table, Spanned::span)
+                } else if key("major_radius") || key("the section") {
+                    c.major_radius.span()
+                } else if key("the axis") {
+                    c.bezier.span()
+                } else {
+                    table
+                }
+            }
             _ => c.bezier.span(),
         };
-        (span, e.to_string())
+        (span, msg)
     })
 }
 
@@ -400,8 +415,15 @@ pub(super) fn hair_cylinders(
         twist,
         framing,
     } = shape;
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {file}: {e}"))?;
+    let bytes = crate::limits::read_file(path, crate::limits::MAX_HAIR_FILE, "hair file")
+        .map_err(|e| format!("cannot read {file}: {e}"))?;
     let hair = parse_hair(&bytes, file).map_err(|e| e.to_string())?;
+    drop(bytes);
+    let segments: u64 = hair.strands.iter().map(|s| s.len() as u64).sum();
+    crate::limits::check_memory(
+        segments.saturating_mul(crate::limits::PEAK_BYTES_PER_SEGMENT),
+        &format!("{file}: its {segments} segments"),
+    )?;
     let built: Vec<_> = hair
         .to_strands(radius)
         .into_par_iter()

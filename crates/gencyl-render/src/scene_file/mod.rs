@@ -175,10 +175,11 @@ impl SceneDescription {
     pub fn load(path: impl AsRef<Path>) -> Result<Self, SceneError> {
         let path = path.as_ref();
         let name = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|error| SceneError::Read {
-            path: name.clone(),
-            error,
-        })?;
+        let bytes = crate::limits::read_file(path, crate::limits::MAX_SCENE_FILE, "scene file")
+            .map_err(|error| SceneError::Read {
+                path: name.clone(),
+                error,
+            })?;
         let base = path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
         Self::parse_bytes_in(&bytes, &name, &base)
     }

@@ -42,6 +42,11 @@ const LINEARITY_EPS: f64 = 1e-6;
 /// Subdivision depth cap: beyond it two pieces are treated as linear (a tangential contact).
 /// Each level halves one piece of the pair (the seed halves both): 48 levels of both.
 const MAX_DEPTH: u32 = 96;
+/// Work bound of one call of [`roots`]: piece pairs visited. The test suite's fibers and rays
+/// need at most about 8,000; past the bound every pair left is settled by its chords
+/// (at most two per level of the recursion), and the search is counted as exhausted
+/// ([`crate::budget`]).
+const MAX_PAIRS: u32 = 1 << 16;
 
 /// `phi(u)` alone (without `w`): `q phi / q`.
 #[inline(always)]
@@ -314,6 +319,8 @@ struct Intersector<'a, C, S> {
     /// The stretch of `u` and the monotone piece of the section being intersected.
     stretch: (f64, f64),
     piece: (f64, f64),
+    /// Piece pairs visited so far (the work bound [`MAX_PAIRS`]).
+    pairs: u32,
 }
 
 /// A piece of `phi` and, once computed, its halves: the subdivision of `phi` (a Taylor model
@@ -342,12 +349,16 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
         if separated(&a, &b) || separated(&b, &a) {
             return;
         }
+        self.pairs += 1;
+        if self.pairs == MAX_PAIRS {
+            crate::budget::note_exhausted();
+        }
         let la = is_linear(&a, self.scale) || !splittable(&a);
         let lb = is_linear(&b, self.scale) || !splittable(&b);
         // Both bend: split the larger only, so a wide box (`phi` near a singular frame) is
         // not paired with ever more pieces of the section.
         let split_a = !la && (lb || size(&a) >= size(&b));
-        if (la && lb) || depth >= MAX_DEPTH {
+        if (la && lb) || depth >= MAX_DEPTH || self.pairs >= MAX_PAIRS {
             self.chord_intersect(&a, &b);
         } else if split_a {
             let [a1, a2] = &mut **self.halves(node);
@@ -390,6 +401,7 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
     /// the chords' lines cross within `(ha + hb) / sin(angle)` along either chord: a crossing
     /// of the lines that far outside a chord may still be this pair's root (near the end it
     /// shares with a neighbour, whose chord can miss it on the other side).
+    #[inline(never)] // its frame (the 2D isolator's box stack) stays off the recursion's
     fn chord_intersect(&mut self, a: &Piece, b: &Piece) {
         let (ea, eb) = (a.p1 - a.p0, b.p1 - b.p0);
         let den = ea.perp_dot(eb);
@@ -469,6 +481,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         scale,
         stretch: (lo, hi),
         piece: (0.0, 0.0),
+        pairs: 0,
     };
     let vb = cyl.section.monotone_breaks();
     for (u0, u1) in stretches {

@@ -198,6 +198,9 @@ fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16
     let mut cells = 0;
     while let Some(c) = stack.pop() {
         cells += 1;
+        if cells == BUDGET + 1 {
+            crate::budget::note_exhausted();
+        }
         let disc = bounds(&c.disc, k.err_disc);
         let root = disc.sqrt_pos();
         let z_s = bounds(&c.z_s, k.err_z);

@@ -1,0 +1,25 @@
+//! The work bounds of the root searches, and a count of the searches that reached theirs.
+//!
+//! Every search of the intersector is bounded in depth and in work: the 1D isolator in
+//! evaluations ([`crate::roots::IsolateOptions::max_evaluations`]), the 2D one in boxes, the
+//! round-fiber branches in cells, the general method's curve-curve subdivision in piece pairs.
+//! Each has a defined outcome when its bound is reached: what is left of the search is settled
+//! by sign changes at the ends of its cells (the 1D searches), by the chords of its pieces
+//! (curve-curve), or dropped (2D boxes). The hits of such a search can be incomplete, so each
+//! one is counted here, process-wide, for a program to report ("N searches reached their work
+//! bound"). Geometry within the limits the scene format enforces does not reach them in the
+//! test suite; a count above zero means geometry at the edge of what f64 resolves.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+static EXHAUSTED: AtomicU64 = AtomicU64::new(0);
+
+/// How many root searches reached their work bound since the process started.
+pub fn exhausted_searches() -> u64 {
+    EXHAUSTED.load(Ordering::Relaxed)
+}
+
+/// Counts one search that reached its work bound.
+pub(crate) fn note_exhausted() {
+    EXHAUSTED.fetch_add(1, Ordering::Relaxed);
+}
