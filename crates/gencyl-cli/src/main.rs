@@ -5,7 +5,7 @@
 //! PNG (the built-in scene without SCENE).
 
 use std::io::{self, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -13,6 +13,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use gencyl_render::accel::{Scene, Scratch};
 use gencyl_render::formats::{Film, Window, hair};
+use gencyl_render::limits;
 use gencyl_render::raycast::{self, RaycastOptions};
 use gencyl_render::scene_file::{SceneDescription, SceneError};
 use gencyl_render::scenes::{builtin, synth};
@@ -59,6 +60,10 @@ struct RenderArgs {
     /// Image width in pixels; the height keeps the camera's aspect ratio.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
     width: Option<u32>,
+    /// Most pixels the image may have (default 2^28 = 268435456: a film of 16-24 bytes per
+    /// pixel, copied once when written, must fit in memory).
+    #[arg(long, default_value_t = limits::MAX_PIXELS, value_parser = clap::value_parser!(u64).range(1..))]
+    max_pixels: u64,
     /// Samples per pixel (default: the scene's, else 16).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     spp: Option<u32>,
@@ -91,6 +96,9 @@ struct MergeArgs {
     /// The merged image: `.png` or `.exr`.
     #[arg(short, long)]
     output: PathBuf,
+    /// Most pixels the merged frame may have (default 2^28).
+    #[arg(long, default_value_t = limits::MAX_PIXELS, value_parser = clap::value_parser!(u64).range(1..))]
+    max_pixels: u64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -117,8 +125,9 @@ struct BenchArgs {
     /// The `ponytail` scene (the TressFX ponytail over a scalp).
     #[arg(long, default_value = "examples/ponytail.toml")]
     ponytail: PathBuf,
-    /// Camera rays per scene (a 4:3 image of about this many pixels, one ray each).
-    #[arg(long, default_value_t = 76_800)]
+    /// Camera rays per scene (a 4:3 image of about this many pixels, one ray each; at most
+    /// 2^26, whose rays take 3 GiB).
+    #[arg(long, default_value_t = 76_800, value_parser = clap::value_parser!(u32).range(1..=1 << 26))]
     rays: u32,
 }
 
@@ -174,32 +183,77 @@ fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> Result<()> {
-    match cli.command {
+    let result = match cli.command {
         Command::Raycast(args) => raycast_command(args),
         Command::Render(args) => render_command(args),
         Command::Merge(args) => merge_command(args),
         Command::Generate(args) => generate_command(args),
         Command::Bench(args) => bench_command(args),
+    };
+    let exhausted = gencyl::budget::exhausted_searches();
+    if exhausted > 0 {
+        warn(format!(
+            "{exhausted} root searches reached their work bound (geometry at the edge of what f64 resolves); their hits come from the bound's fallback and may be incomplete"
+        ));
     }
+    result
+}
+
+/// A warning: to standard error, not an error.
+fn warn(message: impl std::fmt::Display) {
+    eprintln!("warning: {message}");
+}
+
+/// A thread pool of `threads` (default: all cores), at most [`limits::max_threads`].
+fn thread_pool(threads: Option<u16>) -> Result<rayon::ThreadPool> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        pool = pool.num_threads(limits::check_threads(n as usize).map_err(anyhow::Error::msg)?);
+    }
+    pool.build().context("cannot start the worker threads")
+}
+
+/// Checks, before any work, that `path` can be written: its extension (any case) is one of
+/// `exts`, its folder exists and is a folder, and a file can be created there.
+fn check_output(path: &Path, exts: &[&str]) -> Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if !exts.contains(&ext.as_str()) {
+        let list: Vec<String> = exts.iter().map(|e| format!(".{e}")).collect();
+        bail!(
+            "{}: the output must end in {}",
+            path.display(),
+            list.join(" or ")
+        );
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "{}: cannot write: the folder {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    if path.is_dir() {
+        bail!("{}: cannot write: it is a folder", path.display());
+    }
+    let probe = dir.join(format!(".gencyl-write-check-{}", std::process::id()));
+    std::fs::File::create(&probe).map_err(|e| {
+        anyhow::anyhow!("{}: cannot write in {}: {e}", path.display(), dir.display())
+    })?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
 }
 
 fn render_command(args: RenderArgs) -> Result<()> {
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = args.threads {
-        pool = pool.num_threads(n as usize);
-    }
-    let pool = pool.build().context("cannot start the worker threads")?;
-    let ext = args
-        .output
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("");
-    if !matches!(ext, "png" | "exr") {
-        bail!(
-            "{}: the output must end in .png or .exr",
-            args.output.display()
-        );
-    }
+    let pool = thread_pool(args.threads)?;
+    check_output(&args.output, &["png", "exr"])?;
     if let Some(r) = args.radius
         && !(r.is_finite() && r > 0.0)
     {
@@ -207,9 +261,17 @@ fn render_command(args: RenderArgs) -> Result<()> {
     }
     pool.install(|| {
         let t0 = Instant::now();
+        let name = args
+            .scene
+            .as_ref()
+            .map_or("the built-in scene".to_string(), |p| p.display().to_string());
         let desc = match &args.scene {
             None => builtin::default_scene(),
-            Some(path) if path.extension().is_some_and(|e| e == "hair") => {
+            Some(path)
+                if path
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("hair")) =>
+            {
                 SceneDescription::from_hair_file(path, args.radius).map_err(anyhow::Error::msg)?
             }
             Some(path) => {
@@ -219,6 +281,17 @@ fn render_command(args: RenderArgs) -> Result<()> {
                 SceneDescription::load(path)?
             }
         };
+        let empty = desc.cylinders.is_empty() && desc.spheres.is_empty() && desc.planes.is_empty();
+        if empty {
+            warn(format!(
+                "{name} has no geometry (no cylinders, strands, hair, spheres or planes, or only empty or degenerate strands): the image shows only the sky"
+            ));
+        }
+        for (i, light) in desc.lights.iter().enumerate() {
+            if light.is_dark() {
+                warn(format!("{name}: light {i} emits nothing (its value is zero)"));
+            }
+        }
         let t1 = Instant::now();
         let scene_camera = desc.camera;
         let table = desc.render;
@@ -227,9 +300,18 @@ fn render_command(args: RenderArgs) -> Result<()> {
         let bounds = world.bounds();
         let mut camera = scene_camera.unwrap_or_else(|| builtin::framed_camera(bounds, 640, 480));
         if let Some(w) = args.width {
-            camera.height = ((w as u64 * camera.height as u64 + camera.width as u64 / 2)
-                / camera.width as u64)
-                .max(1) as u32;
+            let h = (w as u64 * camera.height as u64 + camera.width as u64 / 2)
+                / camera.width as u64;
+            camera.height = u32::try_from(h.max(1))
+                .ok()
+                .filter(|&h| h <= 65536)
+                .ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "--width {w}: the height would be {h} pixels (the camera's aspect ratio is {}:{}), more than 65536",
+                        camera.width,
+                        camera.height
+                    )
+                })?;
             camera.width = w;
         }
         if world.lights.is_empty() && world.environment.is_none() {
@@ -255,6 +337,24 @@ fn render_command(args: RenderArgs) -> Result<()> {
                 .map_err(|e| anyhow::anyhow!("--crop: {e}"))?,
             None => Window::full(camera.width, camera.height),
         };
+        let pixels = window.width() as u64 * window.height() as u64;
+        if pixels > args.max_pixels {
+            bail!(
+                "{name}: the image would be {}x{} = {pixels} pixels, more than the limit of {} (the film must fit in memory; --max-pixels raises the limit)",
+                window.width(),
+                window.height(),
+                args.max_pixels
+            );
+        }
+        // The film (f32 per channel), and a copy of it while it is encoded.
+        let channels = settings.integrator.channels().len() as u64;
+        limits::check_memory(pixels * channels * 4 * 2, &format!("a {}x{} image", window.width(), window.height()))
+            .map_err(anyhow::Error::msg)?;
+        if !empty && !sees_geometry(&world, &camera) {
+            warn(format!(
+                "the camera sees no geometry of {name} (no probe ray through a 64x48 grid of the image hits anything)"
+            ));
+        }
         let bar = if args.quiet {
             ProgressBar::hidden()
         } else {
@@ -266,14 +366,18 @@ fn render_command(args: RenderArgs) -> Result<()> {
             )
             .expect("a valid template"),
         );
-        let image = integrator::render(&world, &camera, &settings, window, &|done| {
+        let rendered = integrator::render(&world, &camera, &settings, window, &|done| {
             bar.set_position(done)
         });
         bar.finish_and_clear();
         let t3 = Instant::now();
-        image
-            .write(&args.output)
-            .with_context(|| format!("cannot write {}", args.output.display()))?;
+        if rendered.non_finite_samples > 0 {
+            warn(format!(
+                "{} samples were NaN or infinite and were left out (their pixels are the mean of the finite samples)",
+                rendered.non_finite_samples
+            ));
+        }
+        rendered.film.write(&args.output)?;
         eprintln!(
             "{}: {}x{} ({}), {} spp, {:?}, {} cylinders; load {:.2} s, BVH {:.2} s, render {:.2} s",
             args.output.display(),
@@ -298,11 +402,26 @@ fn render_command(args: RenderArgs) -> Result<()> {
     })
 }
 
+/// Whether any ray of a 64x48 grid over the camera's image hits something.
+fn sees_geometry(world: &World, camera: &gencyl_render::optics::Camera) -> bool {
+    let mut scratch = Scratch::default();
+    (0..48).any(|j| {
+        (0..64).any(|i| {
+            let x = (i as f64 + 0.5) / 64.0 * camera.width as f64;
+            let y = (j as f64 + 0.5) / 48.0 * camera.height as f64;
+            world
+                .intersect(&camera.ray(x, y), 0.0, f64::INFINITY, &mut scratch)
+                .is_some()
+        })
+    })
+}
+
 fn merge_command(args: MergeArgs) -> Result<()> {
+    check_output(&args.output, &["png", "exr"])?;
     let parts = args
         .parts
         .iter()
-        .map(|p| Film::read_exr(p))
+        .map(|p| Film::read_exr_within(p, args.max_pixels))
         .collect::<Result<Vec<_>, _>>()?;
     let full = Film::merge(&parts).with_context(|| {
         let names: Vec<String> = args
@@ -313,8 +432,7 @@ fn merge_command(args: MergeArgs) -> Result<()> {
             .collect();
         format!("cannot merge parts {}", names.join(", "))
     })?;
-    full.write(&args.output)
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    full.write(&args.output)?;
     eprintln!(
         "{}: {}x{} from {} windows",
         args.output.display(),
@@ -327,13 +445,35 @@ fn merge_command(args: MergeArgs) -> Result<()> {
 
 fn generate_command(args: GenerateArgs) -> Result<()> {
     let t0 = Instant::now();
+    check_output(&args.output, &["hair"])?;
+    let points = args.strands as u64 * (args.segments as u64 + 1);
+    if points > u32::MAX as u64 {
+        bail!(
+            "--strands {} --segments {}: {points} points, more than the {} a .hair file can hold (its point count is a u32)",
+            args.strands,
+            args.segments,
+            u32::MAX
+        );
+    }
+    // Points in memory (f64 positions and thickness), the file's bytes (f32 positions and
+    // thickness), and the file's copy on its way to disk.
+    limits::check_memory(points * (32 + 16 + 16), "generating the model").map_err(|m| {
+        anyhow::anyhow!(
+            "--strands {} --segments {}: {m}",
+            args.strands,
+            args.segments
+        )
+    })?;
     let (strands, thickness) =
         synth::hair_model(args.strands as usize, args.segments as usize, args.seed);
     let bytes = hair::write_hair(&strands, Some(&thickness), "gencyl generate");
+    drop((strands, thickness));
     let tmp = args.output.with_extension("hair.partial");
-    std::fs::write(&tmp, &bytes)
-        .and_then(|()| std::fs::rename(&tmp, &args.output))
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let written = std::fs::write(&tmp, &bytes).and_then(|()| std::fs::rename(&tmp, &args.output));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        bail!("{}: cannot write: {e}", args.output.display());
+    }
     eprintln!(
         "{}: {} strands x {} segments ({} bytes) in {:.2} s",
         args.output.display(),
@@ -348,6 +488,16 @@ fn generate_command(args: GenerateArgs) -> Result<()> {
 fn bench_command(args: BenchArgs) -> Result<()> {
     let width = ((args.rays as f64 * 4.0 / 3.0).sqrt().round() as u32).max(4);
     let height = (width * 3 / 4).max(3);
+    let rays_bytes = width as u64 * height as u64 * std::mem::size_of::<gencyl::Ray>() as u64;
+    limits::check_memory(rays_bytes, &format!("--rays {}", args.rays))
+        .map_err(anyhow::Error::msg)?;
+    if args.large {
+        limits::check_memory(
+            1_600_000 * limits::PEAK_BYTES_PER_SEGMENT,
+            "--large (the generated 1.6M-segment model)",
+        )
+        .map_err(anyhow::Error::msg)?;
+    }
     println!("scene,segments,load_s,bvh_s,bytes_per_segment,threads,rays,rays_per_s,hit_fraction");
     type Loader<'a> = Box<dyn Fn() -> Result<SceneDescription> + 'a>;
     let mut scenes: Vec<(&str, Loader)> = vec![
@@ -423,11 +573,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
 }
 
 fn raycast_command(args: RaycastArgs) -> Result<()> {
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = args.threads {
-        pool = pool.num_threads(n as usize);
-    }
-    let pool = pool.build().context("cannot start the worker threads")?;
+    let pool = thread_pool(args.threads)?;
     let threads = pool.current_num_threads();
     pool.install(|| {
         let t0 = Instant::now();

@@ -28,7 +28,9 @@ fn settings(integrator: Integrator, spp: u32) -> RenderSettings {
 }
 
 fn full(world: &World, cam: &Camera, s: &RenderSettings) -> Film {
-    integrator::render(world, cam, s, Window::full(cam.width, cam.height), &|_| {})
+    let r = integrator::render(world, cam, s, Window::full(cam.width, cam.height), &|_| {});
+    assert_eq!(r.non_finite_samples, 0, "every sample finite");
+    r.film
 }
 
 /// A straight fiber along x from -2 to 2, radii (A, B), seen by an orthographic camera.
@@ -128,7 +130,8 @@ fn xray_lengths_match_chords() {
         width: 1,
         height: 1,
     };
-    let v = integrator::pixel(&w, &cam, &settings(Integrator::Xray, 4), 0, 0, &mut buf);
+    let (v, dropped) = integrator::pixel(&w, &cam, &settings(Integrator::Xray, 4), 0, 0, &mut buf);
+    assert_eq!(dropped, 0);
     assert!((v[4] - 2.0 * r).abs() < 1e-5, "pixel L = {}", v[4]);
     assert!(
         (v[0] - (-3.0 * v[4]).exp()).abs() < 1e-12,
@@ -280,7 +283,7 @@ fn threads_and_crop_windows_give_identical_pixels() {
             .num_threads(n)
             .build()
             .unwrap()
-            .install(|| integrator::render(&w, &cam, &s, win, &|_| {}))
+            .install(|| integrator::render(&w, &cam, &s, win, &|_| {}).film)
     };
     let whole = Window::full(cam.width, cam.height);
     let one = run(1, whole);

@@ -648,18 +648,24 @@ fn degenerate_input_is_rejected() {
         GeometryError::BadNormalHint,
         "hint along the axis"
     );
-    // Scale does not matter: a valid fiber at 1e200 builds, differences that overflow do not.
+    // Scale does not matter up to the coordinate limit (1e15, gencyl::limits): a fiber at 1e14
+    // builds, the same at 1e200 is refused with the limit named; differences that overflow
+    // are refused before that.
     let big = [
         DVec3::ZERO,
-        DVec3::new(1e200, 0.0, 0.0),
-        DVec3::new(2e200, 1e200, 0.0),
-        DVec3::new(3e200, 0.0, 0.0),
+        DVec3::new(1e14, 0.0, 0.0),
+        DVec3::new(2e14, 1e14, 0.0),
+        DVec3::new(3e14, 0.0, 0.0),
     ];
     assert!(
-        FiberSpec::round(big, 1e199).build().is_ok(),
+        FiberSpec::round(big, 1e13).build().is_ok(),
         "huge but valid"
     );
-    let tiny = big.map(|p| p / 1e200 * 1e-300);
+    match FiberSpec::round(big.map(|p| p * 1e186), 1e199).build() {
+        Err(GeometryError::Unresolvable(m)) => assert!(m.contains("more than 1e15"), "{m}"),
+        other => panic!("1e200 coordinates: {other:?}"),
+    }
+    let tiny = big.map(|p| p / 1e14 * 1e-300);
     assert!(
         FiberSpec::round(tiny, 1e-301).build().is_ok(),
         "tiny but valid"
@@ -675,6 +681,41 @@ fn degenerate_input_is_rejected() {
         GeometryError::AxisTooLarge,
         "overflow"
     );
+    // The section against the axis and against the fiber's scale, taper and rotation.
+    let unresolvable = |spec: FiberSpec, what: &str, needle: &str| match spec.build() {
+        Err(GeometryError::Unresolvable(m) | GeometryError::Sweep(m)) => {
+            assert!(m.contains(needle), "{what}: {m}")
+        }
+        other => panic!("{what}: {other:?}"),
+    };
+    unresolvable(
+        FiberSpec::round(straight(1.0), 1e300),
+        "radius 1e300",
+        "times the axis' extent",
+    );
+    assert!(
+        FiberSpec::round(straight(1.0), 1e5).build().is_ok(),
+        "a disc within the limit"
+    );
+    unresolvable(
+        FiberSpec::round(straight(1.0).map(|p| p + DVec3::splat(1e4)), 1e-9),
+        "thin far fiber",
+        "of the fiber's scale",
+    );
+    assert!(
+        FiberSpec::round(straight(1.0).map(|p| p + DVec3::splat(1e4)), 1e-6)
+            .build()
+            .is_ok(),
+        "r = 1e-10 of the position"
+    );
+    let mut taper = FiberSpec::round(straight(1.0), 0.1);
+    taper.major_radius = [1e20, 0.03];
+    taper.minor_radius = [1e20, 0.03];
+    unresolvable(taper, "taper 3e21", "changes by a factor");
+    let mut twist = FiberSpec::round(straight(1.0), 0.1);
+    twist.minor_radius = [0.05, 0.05];
+    twist.rotation = [0.0, 1e7];
+    unresolvable(twist, "rotation 1e7", "rotation reaches");
     // Two coincident inner points are fine (no cusp: a' = 3(P1 - P0) != 0 at the ends).
     let ok = [
         DVec3::ZERO,

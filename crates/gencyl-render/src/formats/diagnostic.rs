@@ -29,6 +29,8 @@ pub struct Diagnostic {
 const MAX_EXCERPT_LINES: usize = 4;
 /// Longest quoted excerpt, in bytes; longer lines are quoted only up to here.
 const MAX_EXCERPT_BYTES: usize = 400;
+/// Longest message, in characters: one that quotes a huge value is cut.
+const MAX_MESSAGE_CHARS: usize = 200;
 
 impl Diagnostic {
     /// A diagnostic for the bytes `span` of `source` (clamped to the source; an empty span
@@ -53,20 +55,26 @@ impl Diagnostic {
                 break;
             }
         }
+        // Far into a long line, quote from a little before the problem.
+        let begin = if start - line_start > MAX_EXCERPT_BYTES / 2 {
+            floor_char_boundary(source, start - MAX_EXCERPT_BYTES / 4)
+        } else {
+            line_start
+        };
         let excerpt_end = floor_char_boundary(
             source,
-            excerpt_end.min(line_start + MAX_EXCERPT_BYTES).max(start),
+            excerpt_end.min(begin + MAX_EXCERPT_BYTES).max(start),
         );
-        let excerpt = source[line_start..excerpt_end]
+        let excerpt = source[begin..excerpt_end]
             .trim_end_matches(['\n', '\r'])
             .to_string();
-        let rel_start = (start - line_start).min(excerpt.len());
-        let rel_end = (end - line_start).clamp(rel_start, excerpt.len());
+        let rel_start = (start - begin).min(excerpt.len());
+        let rel_end = (end - begin).clamp(rel_start, excerpt.len());
         Diagnostic {
             path: path.to_string(),
             line,
             column,
-            message: message.into(),
+            message: crate::limits::cut(&message.into(), MAX_MESSAGE_CHARS),
             excerpt,
             excerpt_span: rel_start..rel_end,
         }
@@ -141,6 +149,20 @@ mod tests {
         assert!(r.contains("scene.toml:3:16"), "{r}");
         assert!(r.contains("major_radius = [0.0, 0.03]"), "{r}");
         assert!(r.contains("^^^^^^^^^^^"), "{r}");
+    }
+
+    #[test]
+    fn huge_lines_and_messages_are_cut() {
+        let value = "x".repeat(10_000_000);
+        let src = format!("a = 1\nname = \"{value}\" oops\n");
+        let at = src.find(" oops").unwrap();
+        let d = Diagnostic::new("s.toml", &src, at..at + 5, format!("bad value {value}"));
+        assert!(d.message.len() < 500, "{}", d.message.len());
+        let r = d.render();
+        assert!(r.len() < 2000, "{}", r.len());
+        assert!(r.contains("oops"), "{r}");
+        assert_eq!(d.line, 2);
+        assert_eq!(d.column, at - 6 + 1);
     }
 
     #[test]

@@ -269,8 +269,42 @@ impl Film {
 
     /// Reads an EXR written by [`Film::write`] (or any scanline/tiled f32 or f16 EXR with one
     /// layer): channels (in canonical order, see the module docs), data window, display window.
+    /// Frames of more than [`crate::limits::MAX_PIXELS`] pixels are refused.
     pub fn read_exr(path: &Path) -> Result<Film, FilmError> {
+        Self::read_exr_within(path, crate::limits::MAX_PIXELS)
+    }
+
+    /// [`Film::read_exr`] for frames of up to `max_pixels`: the headers are read and checked
+    /// first (a regular file or pipe; display window and data window within `max_pixels`, the
+    /// data within the memory the process can get), so a file that claims a huge image is
+    /// refused before anything is allocated for it.
+    pub fn read_exr_within(path: &Path, max_pixels: u64) -> Result<Film, FilmError> {
         let unsupported = |problem: String| file_err(path, format!("unsupported EXR: {problem}"));
+        crate::limits::check_readable(path).map_err(|e| FilmError::Io(path.into(), "read", e))?;
+        let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| match e {
+            exr::error::Error::Io(source) => FilmError::Io(path.into(), "read", source),
+            exr::error::Error::Invalid(m) => file_err(path, format!("not an EXR file: {m}")),
+            exr::error::Error::NotSupported(m) => unsupported(m.into_owned()),
+            exr::error::Error::Aborted => unsupported("reading was aborted".into()),
+        })?;
+        for h in &meta.headers {
+            let display = h.shared_attributes.display_window.size;
+            let frame = display.0 as u64 * display.1 as u64;
+            let data = h.layer_size.0 as u64 * h.layer_size.1 as u64;
+            let big = frame.max(data);
+            if big > max_pixels {
+                return Err(file_err(
+                    path,
+                    format!(
+                        "the header claims a {}x{} frame ({big} pixels), more than the limit of {max_pixels} (--max-pixels raises it)",
+                        display.0, display.1
+                    ),
+                ));
+            }
+            let need = data * (h.channels.list.len() as u64).max(1) * 4 * 3;
+            crate::limits::check_memory(need, "reading its pixels")
+                .map_err(|m| file_err(path, m))?;
+        }
         let image = exr::prelude::read()
             .no_deep_data()
             .largest_resolution_level()

@@ -157,6 +157,31 @@ pub fn parse_hair(bytes: &[u8], file: &str) -> Result<HairFile, HairError> {
     } else {
         None
     };
+    // Transparency and colour are not used for shading, but a file with NaN in them is
+    // damaged: refuse it rather than carry the values along.
+    for (present, per_point, name, lo, hi) in [
+        (has_transparency, 1, "transparency", 0.0, 1.0),
+        (has_color, 3, "colour", 0.0, f64::INFINITY),
+    ] {
+        if !present {
+            continue;
+        }
+        for i in 0..points * per_point {
+            let x = f32_at(bytes, at);
+            if !(x.is_finite() && x >= lo && x <= hi) {
+                let range = if hi.is_finite() {
+                    "in [0, 1]"
+                } else {
+                    "finite and non-negative"
+                };
+                return Err(bad(format!(
+                    "{name} of point {} (byte {at}) must be {range}, got {x}",
+                    i / per_point
+                )));
+            }
+            at += 4;
+        }
+    }
     let thickness = thickness.map(|t| split(&t, &segments));
     let strand_points = split(&pts, &segments);
     let info_bytes = &bytes[40..128];

@@ -100,6 +100,17 @@ pub struct LightSample {
 }
 
 impl Light {
+    /// Whether the light emits nothing (its irradiance, intensity or radiance is zero in every
+    /// channel), so it lights nothing.
+    pub fn is_dark(&self) -> bool {
+        let value = match self {
+            Light::Directional { irradiance, .. } => irradiance,
+            Light::Point { intensity, .. } => intensity,
+            Light::Sphere { radiance, .. } => radiance,
+        };
+        *value == DVec3::ZERO
+    }
+
     /// Checks the light's numbers; the message names the problem.
     pub fn validate(&self) -> Result<(), String> {
         let colour_ok = |c: DVec3| c.is_finite() && c.min_element() >= 0.0;

@@ -15,8 +15,8 @@ use crate::settings::{Integrator, RenderTable};
 pub(super) struct RawCamera {
     #[serde(rename = "type")]
     pub(super) kind: Option<Spanned<String>>,
-    pub(super) position: Spanned<Array<f64, 3>>,
-    pub(super) look_at: Spanned<Array<f64, 3>>,
+    pub(super) position: Option<Spanned<Array<f64, 3>>>,
+    pub(super) look_at: Option<Spanned<Array<f64, 3>>>,
     pub(super) up: Option<Spanned<Array<f64, 3>>>,
     pub(super) fov: Option<Spanned<f64>>,
     pub(super) view_height: Option<Spanned<f64>>,
@@ -85,10 +85,16 @@ pub(super) fn build_camera(c: &RawCamera, table: Range<usize>) -> Result<Camera,
         None => [640, 480],
     };
     let camera = Camera {
-        position: vec3(&c.position, "position")?,
-        look_at: vec3(&c.look_at, "look_at")?,
+        position: vec3(
+            required(&c.position, "position", "a camera", &table)?,
+            "position",
+        )?,
+        look_at: vec3(
+            required(&c.look_at, "look_at", "a camera", &table)?,
+            "look_at",
+        )?,
         up: match &c.up {
-            Some(u) => vec3(u, "up")?,
+            Some(u) => direction(u, "up")?,
             None => DVec3::Y,
         },
         projection,

@@ -19,6 +19,7 @@ use super::materials::{FIBER_MATERIAL, Materials};
 use super::values::*;
 use crate::accel::{Plane, Sphere};
 use crate::formats::hair::parse_hair;
+use crate::limits::MAX_LENGTH;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -129,12 +130,13 @@ pub(super) fn transform(t: &Option<Spanned<RawTransform>>) -> Result<Similarity,
     let t = t.get_ref();
     let mut out = Similarity::default();
     if let Some(s) = &t.scale {
-        out.scale = number(s, "transform scale", 0.0, f64::INFINITY, true)?;
+        out.scale = length(s, "transform scale")?;
     }
     if let Some(r) = &t.rotate {
         let [x, y, z, deg] = val(r);
         let axis = DVec3::new(x, y, z);
-        if !(axis.is_finite() && deg.is_finite() && axis.length_squared() > 0.0) {
+        let big = axis.abs().max_element();
+        if !(axis.is_finite() && deg.is_finite() && big > 0.0) {
             return Err((
                 r.span(),
                 format!(
@@ -143,7 +145,7 @@ pub(super) fn transform(t: &Option<Spanned<RawTransform>>) -> Result<Similarity,
                 ),
             ));
         }
-        out.rotation = DQuat::from_axis_angle(axis.normalize(), deg.to_radians());
+        out.rotation = DQuat::from_axis_angle((axis / big).normalize(), deg.to_radians());
     }
     if let Some(tr) = &t.translate {
         out.translation = vec3(tr, "transform translate")?;
@@ -358,26 +360,47 @@ pub(super) fn build_strand(
 /// Checks one `[[sphere]]` table and builds its sphere.
 pub(super) fn build_sphere(r: &RawSphere) -> Result<Sphere, Problem> {
     let xf = transform(&r.transform)?;
-    Ok(Sphere {
+    let sphere = Sphere {
         center: xf.point(vec3(&r.center, "center")?),
-        radius: number(&r.radius, "radius", 0.0, f64::INFINITY, true)? * xf.scale,
-    })
+        radius: length(&r.radius, "radius")? * xf.scale,
+    };
+    let far = sphere.center.abs().max_element() + sphere.radius;
+    if !(far <= MAX_LENGTH && sphere.radius > 0.0) {
+        return Err((
+            r.radius.span(),
+            format!(
+                "with its transform the sphere reaches {} from the origin (radius {}), beyond {MAX_LENGTH:.0e} or too small to resolve",
+                gencyl::limits::short(far),
+                gencyl::limits::short(sphere.radius)
+            ),
+        ));
+    }
+    Ok(sphere)
 }
 
 /// Checks one `[[plane]]` table and builds its plane.
 pub(super) fn build_plane(r: &RawPlane) -> Result<Plane, Problem> {
     let xf = transform(&r.transform)?;
-    Ok(Plane {
+    let plane = Plane {
         point: xf.point(vec3(&r.point, "point")?),
         normal: xf.direction(direction(&r.normal, "normal")?),
-    })
+    };
+    if !(plane.point.abs().max_element() <= MAX_LENGTH) {
+        return Err((
+            r.point.span(),
+            format!(
+                "with its transform the plane's point is beyond {MAX_LENGTH:.0e} from the origin"
+            ),
+        ));
+    }
+    Ok(plane)
 }
 
 /// Reads one `[[hair]]` file (relative to the scene's folder) and builds its strands.
 pub(super) fn build_hair(h: &RawHair, base: &Path) -> Result<Vec<GeneralizedCylinder>, Problem> {
     let file = h.file.get_ref();
     let radius = match &h.radius {
-        Some(r) => Some(number(r, "radius", 0.0, f64::INFINITY, true)?),
+        Some(r) => Some(length(r, "radius")?),
         None => None,
     };
     let (ellipticity, twist) = strand_shape(&h.ellipticity, &h.twist)?;

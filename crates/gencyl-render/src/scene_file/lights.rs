@@ -68,7 +68,7 @@ pub(super) fn build_light(l: &RawLight, table: Range<usize>) -> Result<Light, Pr
                 required(&l.direction, "direction", &what, &table)?,
                 "direction",
             )?,
-            irradiance: colour(
+            irradiance: radiance(
                 required(&l.irradiance, "irradiance", &what, &table)?,
                 "irradiance",
             )?,
@@ -78,7 +78,7 @@ pub(super) fn build_light(l: &RawLight, table: Range<usize>) -> Result<Light, Pr
                 required(&l.position, "position", &what, &table)?,
                 "position",
             )?,
-            intensity: colour(
+            intensity: radiance(
                 required(&l.intensity, "intensity", &what, &table)?,
                 "intensity",
             )?,
@@ -86,15 +86,9 @@ pub(super) fn build_light(l: &RawLight, table: Range<usize>) -> Result<Light, Pr
         _ => Light::Sphere {
             sphere: Sphere {
                 center: vec3(required(&l.center, "center", &what, &table)?, "center")?,
-                radius: number(
-                    required(&l.radius, "radius", &what, &table)?,
-                    "radius",
-                    0.0,
-                    f64::INFINITY,
-                    true,
-                )?,
+                radius: length(required(&l.radius, "radius", &what, &table)?, "radius")?,
             },
-            radiance: colour(
+            radiance: radiance(
                 required(&l.radiance, "radiance", &what, &table)?,
                 "radiance",
             )?,
@@ -109,15 +103,15 @@ pub(super) fn build_environment(
     match (&e.color, &e.top, &e.bottom) {
         (Some(c), None, None) => {
             not_for(&e.up, "up", "a constant environment")?;
-            Ok(Environment::Constant(colour(c, "color")?))
+            Ok(Environment::Constant(radiance(c, "color")?))
         }
         (None, Some(t), Some(b)) => Ok(Environment::Gradient {
             up: match &e.up {
                 Some(u) => direction(u, "up")?,
                 None => DVec3::Y,
             },
-            top: colour(t, "top")?,
-            bottom: colour(b, "bottom")?,
+            top: radiance(t, "top")?,
+            bottom: radiance(b, "bottom")?,
         }),
         _ => Err((
             table,

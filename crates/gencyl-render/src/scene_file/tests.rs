@@ -313,7 +313,7 @@ fn appearance_errors_are_located() {
         ),
         (
             "[[light]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1\nradiance = 1\n".into(),
-            "s.toml:4:10: radius must be positive and finite, got -1",
+            "s.toml:4:10: radius must be positive and at most 1e15, got -1",
         ),
         (
             "[[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = [1, -1, 1]\n".into(),
@@ -389,7 +389,7 @@ fn appearance_errors_are_located() {
         ),
         (
             "[[strand]]\npoints = [[0, 0, 0], [0, 1, 0]]\nradius = [0.05, 0]\n".into(),
-            "s.toml:3:10: radius must be positive and finite",
+            "s.toml:3:10: radius must be positive and finite at root and tip",
         ),
         (
             format!("{strand}ellipticity = 1.5\n"),
@@ -397,7 +397,7 @@ fn appearance_errors_are_located() {
         ),
         (
             format!("{strand}transform = {{ scale = 0 }}\n"),
-            "s.toml:4:23: transform scale must be positive and finite, got 0",
+            "s.toml:4:23: transform scale must be positive and at most 1e15, got 0",
         ),
         (
             format!("{strand}transform = {{ rotate = [0, 0, 0, 30] }}\n"),
@@ -409,7 +409,7 @@ fn appearance_errors_are_located() {
         ),
         (
             "[[sphere]]\ncenter = [0, 0, 0]\nradius = 0\n".into(),
-            "s.toml:3:10: radius must be positive and finite, got 0",
+            "s.toml:3:10: radius must be positive and at most 1e15, got 0",
         ),
         (
             "[[plane]]\npoint = [0, 0, 0]\nnormal = [0, 0, 0]\n".into(),

@@ -5,6 +5,8 @@
 use std::ops::Range;
 
 use glam::DVec3;
+
+use crate::limits::{MAX_LENGTH, MAX_RADIANCE};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -78,24 +80,54 @@ pub(super) fn val<T: Copy, const N: usize>(s: &Spanned<Array<T, N>>) -> [T; N] {
 /// A validation failure: where (bytes of the source) and what.
 pub(super) type Problem = (Range<usize>, String);
 
-/// A finite 3-vector.
+/// `[x, y, z]` for a message, each number at most 12 digits.
+fn show(v: [f64; 3]) -> String {
+    format!("[{}]", v.map(gencyl::limits::short).join(", "))
+}
+
+/// A point: a finite 3-vector with coordinates up to [`MAX_LENGTH`] in magnitude.
 pub(super) fn vec3(s: &Spanned<Array<f64, 3>>, what: &str) -> Result<DVec3, Problem> {
     let v = DVec3::from_array(val(s));
-    if v.is_finite() {
-        Ok(v)
+    if !v.is_finite() {
+        Err((
+            s.span(),
+            format!("{what} must be finite, got {}", show(val(s))),
+        ))
+    } else if v.abs().max_element() > MAX_LENGTH {
+        Err((
+            s.span(),
+            format!(
+                "{what} {} is beyond {MAX_LENGTH:.0e} from the origin: {}",
+                show(val(s)),
+                gencyl::limits::WHY_COORDINATE
+            ),
+        ))
     } else {
-        Err((s.span(), format!("{what} must be finite, got {:?}", val(s))))
+        Ok(v)
     }
 }
 
-/// A finite non-zero 3-vector, normalized.
+/// A direction: a finite non-zero 3-vector of any length, normalized (scaled by its largest
+/// component first, so that neither `[1e200, 0, 0]` nor `[1e-200, 0, 0]` squares out of range).
 pub(super) fn direction(s: &Spanned<Array<f64, 3>>, what: &str) -> Result<DVec3, Problem> {
-    let v = vec3(s, what)?;
-    if v.length_squared() > 0.0 {
-        Ok(v.normalize())
+    let v = DVec3::from_array(val(s));
+    if !v.is_finite() {
+        return Err((
+            s.span(),
+            format!("{what} must be finite, got {}", show(val(s))),
+        ));
+    }
+    let big = v.abs().max_element();
+    if big > 0.0 {
+        Ok((v / big).normalize())
     } else {
         Err((s.span(), format!("{what} must not be zero")))
     }
+}
+
+/// A length: positive, at most [`MAX_LENGTH`].
+pub(super) fn length(s: &Spanned<f64>, what: &str) -> Result<f64, Problem> {
+    number(s, what, 0.0, MAX_LENGTH, true)
 }
 
 /// A finite number in `[lo, hi]` (`open`: excluding `lo`).
@@ -111,13 +143,22 @@ pub(super) fn number(
     if ok {
         return Ok(x);
     }
+    let hi_text = if hi >= 1e6 {
+        format!("{hi:e}")
+    } else {
+        format!("{hi}")
+    };
     let range = match (open, hi.is_finite()) {
         (true, false) if lo == 0.0 => "positive and finite".to_string(),
         (false, false) if lo == 0.0 => "non-negative and finite".to_string(),
-        (true, _) => format!("in ({lo}, {hi}]"),
-        (false, _) => format!("in [{lo}, {hi}]"),
+        (true, _) if lo == 0.0 && hi == MAX_LENGTH => format!("positive and at most {hi_text}"),
+        (true, _) => format!("in ({lo}, {hi_text}]"),
+        (false, _) => format!("in [{lo}, {hi_text}]"),
     };
-    Err((s.span(), format!("{what} must be {range}, got {x}")))
+    Err((
+        s.span(),
+        format!("{what} must be {range}, got {}", gencyl::limits::short(x)),
+    ))
 }
 
 /// A finite non-negative colour.
@@ -129,11 +170,26 @@ pub(super) fn colour(s: &Spanned<Colour>, what: &str) -> Result<DVec3, Problem> 
         Err((
             s.span(),
             format!(
-                "{what} must be finite and non-negative, got {:?}",
-                c.to_array()
+                "{what} must be finite and non-negative, got {}",
+                show(c.to_array())
             ),
         ))
     }
+}
+
+/// A light's or the sky's value: a colour of at most [`MAX_RADIANCE`].
+pub(super) fn radiance(s: &Spanned<Colour>, what: &str) -> Result<DVec3, Problem> {
+    let c = colour(s, what)?;
+    if c.max_element() > MAX_RADIANCE {
+        return Err((
+            s.span(),
+            format!(
+                "{what} {} is above {MAX_RADIANCE:.0e}: sums of samples of it would overflow the image",
+                show(c.to_array())
+            ),
+        ));
+    }
+    Ok(c)
 }
 
 /// `key` must be absent for `kind` (a light or material type).

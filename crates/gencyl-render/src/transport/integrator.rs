@@ -255,6 +255,16 @@ fn next_event(
     f * ls.value * (w / pick)
 }
 
+/// A rendered window, and how many samples were dropped for not being finite.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    /// The image.
+    pub film: Film,
+    /// Samples whose value was NaN or infinite (in a channel other than depth's `Z`): never
+    /// written; their pixels are the mean of the finite ones.
+    pub non_finite_samples: u64,
+}
+
 /// Renders `window` of the frame into a film (rows in parallel on the current rayon pool),
 /// calling `progress(rows_done)` as rows finish.
 pub fn render(
@@ -263,30 +273,41 @@ pub fn render(
     settings: &RenderSettings,
     window: Window,
     progress: &(dyn Fn(u64) + Sync),
-) -> Film {
+) -> Rendered {
     let channels = settings.integrator.channels();
     let nc = channels.len();
     let mut film = Film::new((camera.width, camera.height), window, channels);
     let row_len = window.width() as usize * nc;
     let done = AtomicU64::new(0);
+    let dropped = AtomicU64::new(0);
     film.data.par_chunks_mut(row_len).enumerate().for_each_init(
         Buffers::default,
         |buf, (j, row)| {
             let y = window.y0 + j as u32;
+            let mut row_dropped = 0;
             for (i, px) in row.chunks_mut(nc).enumerate() {
                 let x = window.x0 + i as u32;
-                let v = pixel(world, camera, settings, x, y, buf);
+                let (v, d) = pixel(world, camera, settings, x, y, buf);
+                row_dropped += d as u64;
                 for (dst, src) in px.iter_mut().zip(v) {
                     *dst = src as f32;
                 }
             }
+            if row_dropped > 0 {
+                dropped.fetch_add(row_dropped, Ordering::Relaxed);
+            }
             progress(done.fetch_add(1, Ordering::Relaxed) + 1);
         },
     );
-    film
+    Rendered {
+        film,
+        non_finite_samples: dropped.into_inner(),
+    }
 }
 
-/// The value of pixel `(x, y)`: the mean of its samples (`Z`: their minimum).
+/// The value of pixel `(x, y)`: the mean of its finite samples (`Z`: their minimum), and the
+/// number of samples dropped because a value other than `Z` was NaN or infinite. A pixel whose
+/// every sample was dropped is 0.
 pub fn pixel(
     world: &World,
     camera: &Camera,
@@ -294,22 +315,34 @@ pub fn pixel(
     x: u32,
     y: u32,
     buf: &mut Buffers,
-) -> Sample {
+) -> (Sample, u32) {
     let mut sum = [0.0; 5];
     let mut z = f64::INFINITY;
+    let mut dropped = 0;
     for s in 0..settings.spp {
         let mut rng = SampleRng::new(x, y, s, settings.seed);
         let ray = camera.ray(x as f64 + rng.uniform(), y as f64 + rng.uniform());
         let v = sample_ray(world, camera, settings, &ray, &mut rng, buf);
+        // The fifth value is the hit's distance (infinite where the sample saw nothing: a
+        // value, not an overflow) except for X-ray, where it is a path length.
+        let z_ok = if settings.integrator == Integrator::Xray {
+            v[4].is_finite()
+        } else {
+            !v[4].is_nan()
+        };
+        if !(z_ok && v[..4].iter().all(|c| c.is_finite())) {
+            dropped += 1;
+            continue;
+        }
         for k in 0..5 {
             sum[k] += v[k];
         }
         z = z.min(v[4]);
     }
-    let n = settings.spp as f64;
+    let n = (settings.spp - dropped).max(1) as f64;
     let mut out = sum.map(|x| x / n);
     if settings.integrator == Integrator::Depth {
         out[4] = z;
     }
-    out
+    (out, dropped)
 }

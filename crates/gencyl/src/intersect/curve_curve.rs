@@ -319,8 +319,9 @@ struct Intersector<'a, C, S> {
     /// The stretch of `u` and the monotone piece of the section being intersected.
     stretch: (f64, f64),
     piece: (f64, f64),
-    /// Piece pairs visited so far (the work bound [`MAX_PAIRS`]).
+    /// Piece pairs visited so far, and the work bound ([`MAX_PAIRS`]).
     pairs: u32,
+    max_pairs: u32,
 }
 
 /// A piece of `phi` and, once computed, its halves: the subdivision of `phi` (a Taylor model
@@ -350,7 +351,7 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
             return;
         }
         self.pairs += 1;
-        if self.pairs == MAX_PAIRS {
+        if self.pairs == self.max_pairs {
             crate::budget::note_exhausted();
         }
         let la = is_linear(&a, self.scale) || !splittable(&a);
@@ -358,7 +359,7 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
         // Both bend: split the larger only, so a wide box (`phi` near a singular frame) is
         // not paired with ever more pieces of the section.
         let split_a = !la && (lb || size(&a) >= size(&b));
-        if (la && lb) || depth >= MAX_DEPTH || self.pairs >= MAX_PAIRS {
+        if (la && lb) || depth >= MAX_DEPTH || self.pairs >= self.max_pairs {
             self.chord_intersect(&a, &b);
         } else if split_a {
             let [a1, a2] = &mut **self.halves(node);
@@ -459,6 +460,19 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     valid: (f64, f64),
     found: &mut Found,
 ) {
+    roots_within(cyl, o, d, range, valid, found, MAX_PAIRS);
+}
+
+/// [`roots`] with a work bound of `max_pairs` piece pairs.
+fn roots_within<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+    range: (f64, f64),
+    valid: (f64, f64),
+    found: &mut Found,
+    max_pairs: u32,
+) {
     let (lo, hi) = range;
     let scale = cyl.section.bounding_radius();
     // Stretches of u on which the frame is smooth: split where it may jump, the left stretch
@@ -482,6 +496,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         stretch: (lo, hi),
         piece: (0.0, 0.0),
         pairs: 0,
+        max_pairs,
     };
     let vb = cyl.section.monotone_breaks();
     for (u0, u1) in stretches {
@@ -573,6 +588,39 @@ mod tests {
         }
         .build()
         .unwrap()
+    }
+
+    /// With a tiny work bound the search still ends, is counted as exhausted, and every root
+    /// it reports is one the full search finds (the bound's fallback, interval Newton on the
+    /// boxes of the pieces left, certifies its roots like any leaf; here it finds them all).
+    #[test]
+    fn the_work_bound_ends_the_search_with_true_roots() {
+        let cyl = xray_fiber(0.05);
+        let before = crate::budget::exhausted_searches();
+        let (mut complete, mut bounded_roots) = (0, 0);
+        for k in 0..40 {
+            let o = DVec3::new(-1.0, -0.9 + 0.045 * k as f64, 0.45 + 0.002 * k as f64) - cyl.origin;
+            let d = DVec3::new(1.0, 0.013, 0.021);
+            let mut full = Found::new();
+            roots(&cyl, o, d, (0.0, 1.0), (0.0, 1.0), &mut full);
+            let mut bounded = Found::new();
+            roots_within(&cyl, o, d, (0.0, 1.0), (0.0, 1.0), &mut bounded, 4);
+            complete += full.len();
+            bounded_roots += bounded.len();
+            for &(u, v) in &bounded {
+                assert!(
+                    full.iter()
+                        .any(|&(fu, fv)| (fu - u).abs() < 1e-9 && (fv - v).abs() < 1e-9),
+                    "ray {k}: bounded root ({u}, {v}) not among {full:?}"
+                );
+            }
+        }
+        assert!(complete > 20, "the rays cross the fiber: {complete} roots");
+        assert!(bounded_roots > 0, "the chords' fallback still finds roots");
+        assert!(
+            crate::budget::exhausted_searches() > before,
+            "exhaustion is counted"
+        );
     }
 
     /// The bounds of `phi` pieces hold the curve: sampled points lie in the box and within the
