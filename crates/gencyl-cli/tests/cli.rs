@@ -595,3 +595,436 @@ fn bench_reports_named_scenes() {
         "{out}"
     );
 }
+
+// Bad input (issue: every bad input ends cleanly). Each case is small: the limits are checked
+// before anything large is allocated, so none of these needs gigabytes.
+
+/// A scene of one straight round cylinder and `extra` tables.
+fn scene_with(name: &str, extra: &str) -> PathBuf {
+    scratch(
+        name,
+        format!("[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1]\n{extra}").as_bytes(),
+    )
+}
+
+/// Checks that `message` names each of `needles`.
+fn names(message: &str, needles: &[&str]) {
+    for n in needles {
+        assert!(message.contains(n), "{n:?} not in: {message}");
+    }
+}
+
+#[test]
+fn image_sizes_are_limited_before_allocating() {
+    let out = scratch("limit.png", b"");
+    let huge = scene_with(
+        "huge.toml",
+        "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nresolution = [65536, 65536]\n",
+    );
+    let e = fails(&["render", "-q", path(&huge), "-o", path(&out)], None);
+    names(
+        &e,
+        &[
+            "huge.toml",
+            "65536x65536 = 4294967296 pixels",
+            "268435456",
+            "--max-pixels",
+        ],
+    );
+    let tall = scene_with(
+        "tall.toml",
+        "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nresolution = [1, 65536]\n",
+    );
+    for w in ["40000", "65536"] {
+        let e = fails(
+            &["render", "-q", path(&tall), "--width", w, "-o", path(&out)],
+            None,
+        );
+        names(&e, &["--width", "the height would be", "more than 65536"]);
+    }
+    // The limit is a flag: a tiny one refuses a small image, and names the flag.
+    let small = scene_with("small.toml", "");
+    let e = fails(
+        &[
+            "render",
+            "-q",
+            path(&small),
+            "--width",
+            "64",
+            "--max-pixels",
+            "100",
+            "-o",
+            path(&out),
+        ],
+        None,
+    );
+    names(&e, &["64x48 = 3072 pixels", "limit of 100"]);
+}
+
+#[test]
+fn threads_rays_and_strands_are_limited() {
+    let s = scene_with("threads.toml", "");
+    let out = scratch("threads.png", b"");
+    let e = fails(
+        &[
+            "render",
+            "-q",
+            path(&s),
+            "--threads",
+            "65535",
+            "-o",
+            path(&out),
+        ],
+        None,
+    );
+    names(&e, &["--threads 65535", "per core"]);
+    let rays = scratch("threads.csv", b"0,0,1,0,0,-1\n");
+    let e = fails(
+        &["raycast", path(&s), path(&rays), "--threads", "65535"],
+        None,
+    );
+    names(&e, &["--threads 65535", "per core"]);
+    let e = fails(&["bench", "--rays", "4294967295"], None);
+    names(&e, &["4294967295", "67108864"]);
+    let hair = scratch("limit.hair", b"");
+    let e = fails(
+        &[
+            "generate",
+            "--strands",
+            "10000000",
+            "--segments",
+            "1000",
+            "-o",
+            path(&hair),
+        ],
+        None,
+    );
+    names(&e, &["10010000000 points", "u32"]);
+    let e = fails(
+        &[
+            "generate",
+            "--strands",
+            "4000000",
+            "--segments",
+            "1000",
+            "-o",
+            path(&hair),
+        ],
+        None,
+    );
+    names(&e, &["needs about", "this process can still allocate"]);
+}
+
+#[test]
+fn devices_and_endless_files_are_refused() {
+    let s = scene_with("dev.toml", "");
+    let out = scratch("dev.png", b"");
+    let e = fails(&["raycast", path(&s), "/dev/zero"], None);
+    names(&e, &["/dev/zero", "character device"]);
+    // Standard input without a newline: the line cap ends it after 4 KiB.
+    let e = fails(&["raycast", path(&s), "-"], Some(&vec![0u8; 1 << 20]));
+    names(&e, &["<stdin>:1", "longer than 4096 bytes"]);
+    for scene in ["/dev/zero", "/dev/urandom", "/dev/null"] {
+        let e = fails(&["render", "-q", scene, "-o", path(&out)], None);
+        names(&e, &[scene, "not a regular file or a pipe"]);
+    }
+    let link = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests/zero.hair");
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+    let e = fails(&["render", "-q", path(&link), "-o", path(&out)], None);
+    names(&e, &["zero.hair", "character device"]);
+    let h = scratch(
+        "dev-hair.toml",
+        format!("[[hair]]\nfile = \"{}\"\n", path(&link)).as_bytes(),
+    );
+    let e = fails(&["render", "-q", path(&h), "-o", path(&out)], None);
+    names(&e, &["dev-hair.toml:2:8", "character device"]);
+}
+
+#[test]
+fn geometry_beyond_f64_is_refused_with_the_reason() {
+    let out = scratch("geom.png", b"");
+    let rays = scratch("geom.csv", b"0.5,-5,0,0,1,0\n");
+    let profile = "profile = [[1, 0], [1, 0.35], [0.55, 0.55], [-0.5, 0.87], [-0.45, 0.45], [-0.5, 0], [-0.5, -0.87], [0.1, -0.75], [0.55, -0.55]]";
+    let cases = [
+        (format!("{AXIS}\nmajor_radius = [1e20, 0.03]\n{profile}"), "changes by a factor", "3:16"),
+        (format!("{AXIS}\nmajor_radius = [1e300, 1e300]"), "times the axis' extent", "3:16"),
+        ("bezier = [[1e300, 0, 0], [1e300, 1, 0], [1e300, 2, 0], [1e300, 3, 0]]\nmajor_radius = [1, 1]".to_string(), "more than 1e15", "2:10"),
+        ("bezier = [[1e4, 0, 0], [1e4, 1, 0], [1e4, 2, 0], [1e4, 3, 0]]\nmajor_radius = [1e-12, 1e-12]".to_string(), "of the fiber's scale", "3:16"),
+    ];
+    for (i, (body, why, at)) in cases.iter().enumerate() {
+        let s = scratch(
+            &format!("geom{i}.toml"),
+            format!("[[cylinder]]\n{body}\n").as_bytes(),
+        );
+        let e = fails(&["raycast", path(&s), path(&rays)], None);
+        names(&e, &[&format!("geom{i}.toml:{at}"), why]);
+        let e = fails(&["render", "-q", path(&s), "-o", path(&out)], None);
+        names(&e, &[why]);
+    }
+    let big = [
+        (
+            "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1e300\n",
+            "radius must be positive and at most 1e15",
+        ),
+        (
+            "[[light]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = 1e300\n",
+            "is above 1e20",
+        ),
+        ("[environment]\ncolor = 1e300\n", "is above 1e20"),
+        (
+            "[camera]\nposition = [1e300, 0, 0]\nlook_at = [0, 0, 0]\n",
+            "position [1.000000e300, 0, 0] is beyond 1e15",
+        ),
+        (
+            "[camera]\ntype = \"fisheye\"\n",
+            "unknown camera type `fisheye`",
+        ),
+    ];
+    for (i, (extra, why)) in big.iter().enumerate() {
+        let s = scene_with(&format!("big{i}.toml"), extra);
+        let e = fails(&["render", "-q", path(&s), "-o", path(&out)], None);
+        names(&e, &[&format!("big{i}.toml:"), why]);
+    }
+    let strand = gencyl_render::formats::hair::write_hair(
+        &[vec![
+            glam::DVec3::ZERO,
+            glam::DVec3::X,
+            glam::DVec3::new(2.0, 0.5, 0.0),
+        ]],
+        None,
+        "one strand",
+    );
+    let h = scratch("radius.hair", &strand);
+    let e = fails(
+        &[
+            "render",
+            "-q",
+            path(&h),
+            "--radius",
+            "1e300",
+            "-o",
+            path(&out),
+        ],
+        None,
+    );
+    names(
+        &e,
+        &["radius.hair: strand 0, segment 0", "times the axis' extent"],
+    );
+}
+
+/// Reads a PNG's RGB bytes.
+fn png_rgb(p: &Path) -> Vec<u8> {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(p).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    buf.truncate(info.buffer_size());
+    buf
+}
+
+#[test]
+fn huge_directions_still_normalise() {
+    // A plane whose normal is [1e200, 0, 0] and a light along [1e200, -1e200, 0] are a wall
+    // at x = -1 lit from the side: the image is not black.
+    let s = scene_with(
+        "dirs.toml",
+        "[[plane]]\npoint = [-1, 0, 0]\nnormal = [1e200, 0, 0]\n[[light]]\ntype = \"directional\"\ndirection = [-1e200, -1e200, 0]\nirradiance = 3\n[camera]\nposition = [5, 0, 0]\nlook_at = [0, 0, 0]\nresolution = [32, 24]\n",
+    );
+    let out = scratch("dirs.png", b"");
+    ok_err(&["render", "-q", path(&s), "--spp", "2", "-o", path(&out)]);
+    let rgb = png_rgb(&out);
+    let lit = rgb.iter().filter(|&&b| b > 20).count();
+    assert!(
+        lit > rgb.len() / 2,
+        "the wall is lit: {lit} of {} bytes",
+        rgb.len()
+    );
+}
+
+#[test]
+fn empty_dark_and_unseen_scenes_warn() {
+    let out = scratch("warn.png", b"");
+    let empty = scratch("empty.toml", b"");
+    let e = ok_err(&[
+        "render",
+        "-q",
+        path(&empty),
+        "--width",
+        "16",
+        "-o",
+        path(&out),
+    ]);
+    names(&e, &["warning: ", "empty.toml has no geometry"]);
+    let dark = scene_with(
+        "dark.toml",
+        "[[light]]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = 0\n",
+    );
+    let e = ok_err(&[
+        "render",
+        "-q",
+        path(&dark),
+        "--width",
+        "16",
+        "-o",
+        path(&out),
+    ]);
+    names(&e, &["warning: ", "dark.toml: light 0 emits nothing"]);
+    let away = scene_with(
+        "away.toml",
+        "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, -10]\n",
+    );
+    let e = ok_err(&[
+        "render",
+        "-q",
+        path(&away),
+        "--width",
+        "16",
+        "-o",
+        path(&out),
+    ]);
+    names(&e, &["warning: the camera sees no geometry"]);
+    // A scene that is seen, lit and not empty gets no warning.
+    let fine = scene_with("fine.toml", "");
+    let e = ok_err(&[
+        "render",
+        "-q",
+        path(&fine),
+        "--width",
+        "16",
+        "--spp",
+        "1",
+        "-o",
+        path(&out),
+    ]);
+    assert!(!e.contains("warning"), "{e}");
+    // A .hair file whose strands are all degenerate (single points) is an empty scene.
+    let degenerate = gencyl_render::formats::hair::write_hair(
+        &[vec![glam::DVec3::ONE; 3], vec![glam::DVec3::ZERO; 2]],
+        None,
+        "degenerate",
+    );
+    let h = scratch("degenerate.hair", &degenerate);
+    let e = ok_err(&[
+        "render",
+        "-q",
+        path(&h),
+        "--width",
+        "16",
+        "--spp",
+        "1",
+        "-o",
+        path(&out),
+    ]);
+    names(&e, &["warning: ", "degenerate.hair has no geometry"]);
+}
+
+#[test]
+fn outputs_are_checked_first_and_nothing_is_left_behind() {
+    let s = scene_with("out.toml", "");
+    let e = fails(
+        &["render", "-q", path(&s), "-o", "/nonexistent-folder/x.png"],
+        None,
+    );
+    names(&e, &["/nonexistent-folder/x.png", "does not exist"]);
+    // Once only: the cause is not repeated.
+    assert_eq!(e.matches("does not exist").count(), 1, "{e}");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests");
+    let e = fails(&["render", "-q", path(&s), "-o", path(&dir)], None);
+    names(&e, &["the output must end in .png or .exr"]);
+    // Upper-case extensions are extensions.
+    let upper = dir.join("UPPER.PNG");
+    let _ = std::fs::remove_file(&upper);
+    ok_err(&[
+        "render",
+        "-q",
+        path(&s),
+        "--width",
+        "16",
+        "--spp",
+        "1",
+        "-o",
+        path(&upper),
+    ]);
+    assert_eq!(&std::fs::read(&upper).unwrap()[1..4], b"PNG");
+    // generate into a folder that does not exist, and over a folder: an error, no .partial.
+    let e = fails(
+        &[
+            "generate",
+            "--strands",
+            "10",
+            "--segments",
+            "2",
+            "-o",
+            "/nonexistent-folder/g.hair",
+        ],
+        None,
+    );
+    names(&e, &["does not exist"]);
+    let target = dir.join("a-folder.hair");
+    std::fs::create_dir_all(&target).unwrap();
+    let e = fails(
+        &[
+            "generate",
+            "--strands",
+            "10",
+            "--segments",
+            "2",
+            "-o",
+            path(&target),
+        ],
+        None,
+    );
+    names(&e, &["a-folder.hair", "it is a folder"]);
+    assert!(
+        !dir.join("a-folder.hair.partial").exists(),
+        "no partial file left"
+    );
+}
+
+#[test]
+fn long_values_are_cut_in_messages() {
+    let out = scratch("cut.png", b"");
+    let digits = scratch(
+        "digits.toml",
+        format!(
+            "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1{}\n",
+            "0".repeat(300)
+        )
+        .as_bytes(),
+    );
+    let e = fails(&["render", "-q", path(&digits), "-o", path(&out)], None);
+    names(&e, &["digits.toml:3:"]);
+    assert!(e.len() < 2000, "{} bytes: {e}", e.len());
+    let string = scratch(
+        "string.toml",
+        format!(
+            "[[sphere]]\ncenter = [0, 0, 0]\nradius = \"{}\"\n",
+            "x".repeat(10_000_000)
+        )
+        .as_bytes(),
+    );
+    let e = fails(&["render", "-q", path(&string), "-o", path(&out)], None);
+    names(&e, &["string.toml:3:10", "more bytes)"]);
+    assert!(e.len() < 2000, "{} bytes", e.len());
+}
+
+#[test]
+fn lying_exr_headers_are_refused_before_reading() {
+    // A valid EXR of one pixel whose display window claims 100000 x 100000 pixels.
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests");
+    std::fs::create_dir_all(&dir).unwrap();
+    let part = dir.join("claims-1e10.exr");
+    let film = gencyl_render::formats::Film::new(
+        (100_000, 100_000),
+        gencyl_render::formats::Window::new(0, 0, 1, 1),
+        &["R", "G", "B"],
+    );
+    film.write(&part).unwrap();
+    assert!(std::fs::metadata(&part).unwrap().len() < 2000);
+    let out = dir.join("merged-1e10.exr");
+    let e = fails(&["merge", path(&part), "-o", path(&out)], None);
+    names(&e, &["claims-1e10.exr", "100000x100000", "--max-pixels"]);
+    assert!(!out.exists());
+}

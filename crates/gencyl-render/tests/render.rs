@@ -341,3 +341,24 @@ fn example_scenes_load() {
     }
     assert!(n >= 4, "the example scenes: {n}");
 }
+
+/// A sample that is not finite is never written: an environment of NaN makes every sample
+/// NaN; each is counted, and the pixels are 0 (no finite samples), not NaN.
+#[test]
+fn non_finite_samples_are_dropped_and_counted() {
+    let cam = "type = \"orthographic\"\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nview_height = 1.0\nresolution = [8, 6]";
+    let (mut w, cam) = world(&straight_fiber(0.1, 0.1, cam));
+    w.environment = Some(gencyl_render::optics::Environment::Constant(DVec3::NAN));
+    w.lights.clear();
+    let s = settings(Integrator::Path, 3);
+    let r = integrator::render(&w, &cam, &s, Window::full(cam.width, cam.height), &|_| {});
+    assert!(r.film.data.iter().all(|x| x.is_finite()), "no NaN written");
+    // Rays that miss see the NaN sky; rays that hit the fiber gather it too (path tracing).
+    assert!(
+        r.non_finite_samples > 0 && r.non_finite_samples <= 8 * 6 * 3,
+        "{}",
+        r.non_finite_samples
+    );
+    let (_, dropped) = integrator::pixel(&w, &cam, &s, 0, 0, &mut Buffers::default());
+    assert_eq!(dropped, 3, "a corner pixel sees only sky");
+}

@@ -387,6 +387,49 @@ mod tests {
         assert!(parse_hair(&magic, "t.hair").is_err(), "signature");
     }
 
+    /// Transparency and colour arrays (flags 8 and 16) are checked: NaN, negative or (for
+    /// transparency) above 1 is an error that names the array, the point and the byte.
+    #[test]
+    fn nan_in_transparency_or_colour_is_an_error() {
+        let (strands, _) = sample();
+        let base = write_hair(&strands, None, "x");
+        let points = u32_at(&base, 8) as usize;
+        let with = |flag: u32, per_point: usize, value: f32, at_point: usize| {
+            let mut b = base.clone();
+            let flags = u32_at(&b, 12) | flag;
+            b[12..16].copy_from_slice(&flags.to_le_bytes());
+            let start = b.len();
+            for _ in 0..points * per_point {
+                b.extend_from_slice(&0.5f32.to_le_bytes());
+            }
+            let at = start + 4 * per_point * at_point;
+            b[at..at + 4].copy_from_slice(&value.to_le_bytes());
+            b
+        };
+        assert!(
+            parse_hair(&with(8, 1, 0.25, 1), "t.hair").is_ok(),
+            "valid transparency"
+        );
+        assert!(
+            parse_hair(&with(16, 3, 2.0, 1), "t.hair").is_ok(),
+            "valid colour"
+        );
+        for (flag, per, value, name) in [
+            (8, 1, f32::NAN, "transparency of point 2"),
+            (8, 1, 1.5, "transparency of point 2"),
+            (16, 3, f32::NAN, "colour of point 2"),
+            (16, 3, -1.0, "colour of point 2"),
+        ] {
+            let e = parse_hair(&with(flag, per, value, 2), "t.hair")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("t.hair: ") && e.contains(name),
+                "{value}: {e}"
+            );
+        }
+    }
+
     #[test]
     fn repeated_points_are_merged() {
         let h = HairFile {
