@@ -930,6 +930,11 @@ fn outputs_are_checked_first_and_nothing_is_left_behind() {
     names(&e, &["/nonexistent-folder/x.png", "does not exist"]);
     // Once only: the cause is not repeated.
     assert_eq!(e.matches("does not exist").count(), 1, "{e}");
+    let missing = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests/missing-part.exr");
+    let merged = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests/merged.exr");
+    let e = fails(&["merge", path(&missing), "-o", path(&merged)], None);
+    names(&e, &["missing-part.exr: cannot read"]);
+    assert_eq!(e.matches("No such file").count(), 1, "{e}");
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests");
     let e = fails(&["render", "-q", path(&s), "-o", path(&dir)], None);
     names(&e, &["the output must end in .png or .exr"]);

@@ -95,9 +95,10 @@ impl Window {
 /// What can go wrong reading, writing or merging films.
 #[derive(Debug, thiserror::Error)]
 pub enum FilmError {
-    /// The file system refused: the file, "read" or "write", the cause.
+    /// The file system refused: the file, "read" or "write", the cause (in the message, and
+    /// not again as the error's source, so that a chain of causes prints it once).
     #[error("{path}: cannot {1}: {2}", path = .0.display())]
-    Io(PathBuf, &'static str, #[source] std::io::Error),
+    Io(PathBuf, &'static str, std::io::Error),
     /// A file that is not an EXR, holds what a film cannot, or cannot be encoded: file, problem.
     #[error("{path}: {1}", path = .0.display())]
     File(PathBuf, String),
