@@ -55,17 +55,24 @@ impl Window {
     /// inside. Error messages name the problem, e.g.
     /// "crop window 0,0,900,10 reaches past the 640x480 frame".
     pub fn parse(s: &str, width: u32, height: u32) -> Result<Window, String> {
+        // For messages: a 10 MB argument is not echoed whole.
+        let shown = |t: &str| crate::limits::cut(t, 60);
         let parts: Vec<&str> = s.split(',').map(str::trim).collect();
         if parts.len() != 4 {
             return Err(format!(
-                "crop window \"{s}\" must be four numbers x0,y0,x1,y1, not {}",
+                "crop window \"{}\" must be four numbers x0,y0,x1,y1, not {}",
+                shown(s),
                 parts.len()
             ));
         }
         let mut v = [0u32; 4];
         for (slot, part) in v.iter_mut().zip(&parts) {
             *slot = part.parse().map_err(|_| {
-                format!("crop window \"{s}\": \"{part}\" is not a whole number >= 0")
+                format!(
+                    "crop window \"{}\": \"{}\" is not a whole number >= 0",
+                    shown(s),
+                    shown(part)
+                )
             })?;
         }
         let w = Window::new(v[0], v[1], v[2], v[3]);
