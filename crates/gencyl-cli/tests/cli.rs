@@ -687,32 +687,24 @@ fn threads_rays_and_strands_are_limited() {
     let e = fails(&["bench", "--rays", "4294967295"], None);
     names(&e, &["4294967295", "67108864"]);
     let hair = scratch("limit.hair", b"");
-    let e = fails(
-        &[
-            "generate",
-            "--strands",
-            "10000000",
-            "--segments",
-            "1000",
-            "-o",
-            path(&hair),
-        ],
-        None,
-    );
-    names(&e, &["10010000000 points", "u32"]);
-    let e = fails(
-        &[
-            "generate",
-            "--strands",
+    for (strands, why) in [
+        ("10000000", ["10010000000 points", "u32"]),
+        (
             "4000000",
+            ["needs about", "this process can still allocate"],
+        ),
+    ] {
+        let args = [
+            "generate",
+            "--strands",
+            strands,
             "--segments",
             "1000",
             "-o",
             path(&hair),
-        ],
-        None,
-    );
-    names(&e, &["needs about", "this process can still allocate"]);
+        ];
+        names(&fails(&args, None), &why);
+    }
 }
 
 #[test]
@@ -846,58 +838,30 @@ fn huge_directions_still_normalise() {
 #[test]
 fn empty_dark_and_unseen_scenes_warn() {
     let out = scratch("warn.png", b"");
-    let empty = scratch("empty.toml", b"");
-    let e = ok_err(&[
-        "render",
-        "-q",
-        path(&empty),
-        "--width",
-        "16",
-        "-o",
-        path(&out),
-    ]);
+    // What a small render of `scene` prints on standard error (it must succeed).
+    let stderr_of = |scene: &Path| {
+        ok_err(&[
+            "render",
+            "-q",
+            path(scene),
+            "--width",
+            "16",
+            "--spp",
+            "1",
+            "-o",
+            path(&out),
+        ])
+    };
+    let e = stderr_of(&scratch("empty.toml", b""));
     names(&e, &["warning: ", "empty.toml has no geometry"]);
-    let dark = scene_with(
-        "dark.toml",
-        "[[light]]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = 0\n",
-    );
-    let e = ok_err(&[
-        "render",
-        "-q",
-        path(&dark),
-        "--width",
-        "16",
-        "-o",
-        path(&out),
-    ]);
+    let dark = "[[light]]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = 0\n";
+    let e = stderr_of(&scene_with("dark.toml", dark));
     names(&e, &["warning: ", "dark.toml: light 0 emits nothing"]);
-    let away = scene_with(
-        "away.toml",
-        "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, -10]\n",
-    );
-    let e = ok_err(&[
-        "render",
-        "-q",
-        path(&away),
-        "--width",
-        "16",
-        "-o",
-        path(&out),
-    ]);
+    let away = "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, -10]\n";
+    let e = stderr_of(&scene_with("away.toml", away));
     names(&e, &["warning: the camera sees no geometry"]);
     // A scene that is seen, lit and not empty gets no warning.
-    let fine = scene_with("fine.toml", "");
-    let e = ok_err(&[
-        "render",
-        "-q",
-        path(&fine),
-        "--width",
-        "16",
-        "--spp",
-        "1",
-        "-o",
-        path(&out),
-    ]);
+    let e = stderr_of(&scene_with("fine.toml", ""));
     assert!(!e.contains("warning"), "{e}");
     // A .hair file whose strands are all degenerate (single points) is an empty scene.
     let degenerate = gencyl_render::formats::hair::write_hair(
@@ -905,18 +869,7 @@ fn empty_dark_and_unseen_scenes_warn() {
         None,
         "degenerate",
     );
-    let h = scratch("degenerate.hair", &degenerate);
-    let e = ok_err(&[
-        "render",
-        "-q",
-        path(&h),
-        "--width",
-        "16",
-        "--spp",
-        "1",
-        "-o",
-        path(&out),
-    ]);
+    let e = stderr_of(&scratch("degenerate.hair", &degenerate));
     names(&e, &["warning: ", "degenerate.hair has no geometry"]);
 }
 
