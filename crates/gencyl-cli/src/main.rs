@@ -44,6 +44,29 @@ enum Command {
     Generate(GenerateArgs),
     /// Time named scenes: load, BVH build, memory per segment, camera rays per second.
     Bench(BenchArgs),
+    /// Write every cylinder of a scene (strands and hair files included) as interface.md
+    /// `[[cylinder]]` tables, and optionally the scene's camera rays as a ray file: the same
+    /// geometry and rays for another intersector.
+    Export(ExportArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct ExportArgs {
+    /// A scene file (TOML) or a hair model (`.hair`).
+    scene: PathBuf,
+    /// The `[[cylinder]]` tables to write.
+    #[arg(short, long, default_value = "cylinders.toml")]
+    output: PathBuf,
+    /// Also write the camera rays `gencyl bench` casts on this scene (one per pixel centre of a
+    /// 4:3 image of about `--rays` pixels) as a ray file.
+    #[arg(long)]
+    camera_rays: Option<PathBuf>,
+    /// Camera rays for `--camera-rays` (at most 2^26).
+    #[arg(long, default_value_t = 76_800, value_parser = clap::value_parser!(u32).range(1..=1 << 26))]
+    rays: u32,
+    /// Fiber radius for a `.hair` model (default: half the file's thickness).
+    #[arg(long, allow_negative_numbers = true)]
+    radius: Option<f64>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -189,6 +212,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Merge(args) => merge_command(args),
         Command::Generate(args) => generate_command(args),
         Command::Bench(args) => bench_command(args),
+        Command::Export(args) => export_command(args),
     };
     let exhausted = gencyl::budget::exhausted_searches();
     if exhausted > 0 {
@@ -468,12 +492,7 @@ fn generate_command(args: GenerateArgs) -> Result<()> {
         synth::hair_model(args.strands as usize, args.segments as usize, args.seed);
     let bytes = hair::write_hair(&strands, Some(&thickness), "gencyl generate");
     drop((strands, thickness));
-    let tmp = args.output.with_extension("hair.partial");
-    let written = std::fs::write(&tmp, &bytes).and_then(|()| std::fs::rename(&tmp, &args.output));
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&tmp);
-        bail!("{}: cannot write: {e}", args.output.display());
-    }
+    write_atomically(&args.output, &bytes)?;
     eprintln!(
         "{}: {} strands x {} segments ({} bytes) in {:.2} s",
         args.output.display(),
@@ -485,12 +504,103 @@ fn generate_command(args: GenerateArgs) -> Result<()> {
     Ok(())
 }
 
-fn bench_command(args: BenchArgs) -> Result<()> {
-    let width = ((args.rays as f64 * 4.0 / 3.0).sqrt().round() as u32).max(4);
+/// The image `bench` casts about `rays` camera rays through: 4:3, one ray per pixel.
+fn bench_image(rays: u32) -> Result<(u32, u32)> {
+    let width = ((rays as f64 * 4.0 / 3.0).sqrt().round() as u32).max(4);
     let height = (width * 3 / 4).max(3);
-    let rays_bytes = width as u64 * height as u64 * std::mem::size_of::<gencyl::Ray>() as u64;
-    limits::check_memory(rays_bytes, &format!("--rays {}", args.rays))
-        .map_err(anyhow::Error::msg)?;
+    let bytes = width as u64 * height as u64 * std::mem::size_of::<gencyl::Ray>() as u64;
+    limits::check_memory(bytes, &format!("--rays {rays}")).map_err(anyhow::Error::msg)?;
+    Ok((width, height))
+}
+
+/// The camera rays of `bench`: the scene's camera (or one framed on `world`) at
+/// `width x height`, one ray through each pixel centre, row by row.
+fn bench_rays(
+    world: &World,
+    camera: Option<gencyl_render::optics::Camera>,
+    (width, height): (u32, u32),
+) -> Vec<gencyl::Ray> {
+    let mut camera =
+        camera.unwrap_or_else(|| builtin::framed_camera(world.bounds(), width, height));
+    camera.width = width;
+    camera.height = height;
+    (0..height)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .map(|(x, y)| camera.ray(x as f64 + 0.5, y as f64 + 0.5))
+        .collect()
+}
+
+fn export_command(args: ExportArgs) -> Result<()> {
+    check_output(&args.output, &["toml"])?;
+    if let Some(p) = &args.camera_rays {
+        check_output(p, &["csv", "txt", "rays"])?;
+    }
+    let desc = if args
+        .scene
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("hair"))
+    {
+        SceneDescription::from_hair_file(&args.scene, args.radius).map_err(anyhow::Error::msg)?
+    } else {
+        if args.radius.is_some() {
+            bail!("--radius applies to .hair models; a scene file sets radii itself");
+        }
+        SceneDescription::load(&args.scene)?
+    };
+    let tables = gencyl_render::scene_file::export::cylinder_tables(&desc.cylinders)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
+    let header = format!(
+        "# {} cylinders of {}, written by gencyl export (interface.md [[cylinder]] tables)\n\n",
+        desc.cylinders.len(),
+        args.scene.display()
+    );
+    write_atomically(&args.output, (header + &tables).as_bytes())?;
+    eprintln!(
+        "{}: {} cylinders",
+        args.output.display(),
+        desc.cylinders.len()
+    );
+    if let Some(path) = &args.camera_rays {
+        let image = bench_image(args.rays)?;
+        let camera = desc.camera;
+        let world = World::new(desc);
+        let rays = bench_rays(&world, camera, image);
+        let mut text = String::from("ox,oy,oz,dx,dy,dz\n");
+        for r in &rays {
+            use std::fmt::Write as _;
+            let (o, d) = (r.origin, r.dir);
+            let _ = writeln!(
+                text,
+                "{:?},{:?},{:?},{:?},{:?},{:?}",
+                o.x, o.y, o.z, d.x, d.y, d.z
+            );
+        }
+        write_atomically(path, text.as_bytes())?;
+        eprintln!(
+            "{}: {} camera rays ({}x{})",
+            path.display(),
+            rays.len(),
+            image.0,
+            image.1
+        );
+    }
+    Ok(())
+}
+
+/// Writes `bytes` to `path` through a temporary file beside it, renamed into place: on error
+/// nothing is left behind.
+fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("partial");
+    let written = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        bail!("{}: cannot write: {e}", path.display());
+    }
+    Ok(())
+}
+
+fn bench_command(args: BenchArgs) -> Result<()> {
+    let (width, height) = bench_image(args.rays)?;
     if args.large {
         limits::check_memory(
             1_600_000 * limits::PEAK_BYTES_PER_SEGMENT,
@@ -530,14 +640,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let world = World::new(desc);
         let t2 = Instant::now();
         let n = world.scene.cylinders().len();
-        let mut camera =
-            camera.unwrap_or_else(|| builtin::framed_camera(world.bounds(), width, height));
-        camera.width = width;
-        camera.height = height;
-        let rays: Vec<gencyl::Ray> = (0..height)
-            .flat_map(|y| (0..width).map(move |x| (x, y)))
-            .map(|(x, y)| camera.ray(x as f64 + 0.5, y as f64 + 0.5))
-            .collect();
+        let rays = bench_rays(&world, camera, (width, height));
         for threads in [1, rayon::current_num_threads()] {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

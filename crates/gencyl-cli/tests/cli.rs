@@ -986,3 +986,90 @@ fn lying_exr_headers_are_refused_before_reading() {
     names(&e, &["claims-1e10.exr", "100000x100000", "--max-pixels"]);
     assert!(!out.exists());
 }
+
+/// `gencyl export`: cylinders written as interface.md tables give the same hits. Frenet-framed
+/// cylinders (elliptical, twisted, profiled, one end capped) to the bit in every column; round
+/// strands (whose strand frame a table cannot carry) to the bit in `t` and `u`, normals to
+/// 1e-12, `v` their own; an elliptical strand is refused with the cylinder named. The camera rays are those `bench` casts.
+#[test]
+fn export_writes_the_same_geometry() {
+    let profile = "profile = [[1, 0], [1, 0.35], [0.55, 0.55], [-0.5, 0.87], [-0.45, 0.45], [-0.5, 0], [-0.5, -0.87], [0.1, -0.75], [0.55, -0.55]]";
+    let scene = scratch(
+        "export-src.toml",
+        format!(
+            "[[cylinder]]\nbezier = [[0, 0, 0], [1, 0.4, 0.1], [2, -0.3, 0.2], [3, 0.1, 0.6]]\nmajor_radius = [0.2, 0.12]\nminor_radius = [0.08, 0.05]\nrotation = [0.3, 4]\ncaps = false\n\
+             [[cylinder]]\nbezier = [[0, 1, 0], [1, 1.5, 0.2], [2, 0.7, -0.2], [3, 1.1, 0.3]]\nmajor_radius = [0.15, 0.15]\n{profile}\n\
+             [[strand]]\npoints = [[0, 2, 0], [1, 2.3, 0.2], [2, 1.8, -0.1], [3, 2.2, 0.1]]\nradius = [0.1, 0.06]\n\
+             [camera]\nposition = [1.5, 1, 8]\nlook_at = [1.5, 1, 0]\n"
+        )
+        .as_bytes(),
+    );
+    let out = scratch("export-out.toml", b"");
+    let rays = scratch("export-rays.csv", b"");
+    ok_err(&[
+        "export",
+        path(&scene),
+        "-o",
+        path(&out),
+        "--camera-rays",
+        path(&rays),
+        "--rays",
+        "3000",
+    ]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(
+        text.lines().filter(|l| *l == "[[cylinder]]").count(),
+        2 + 3,
+        "two cylinders, three strand segments"
+    );
+    assert!(
+        text.contains("caps = false")
+            && text.contains("caps = [true, false]")
+            && text.contains("caps = [false, true]"),
+        "{text}"
+    );
+    let ray_text = std::fs::read_to_string(&rays).unwrap();
+    assert_eq!(
+        ray_text.lines().count(),
+        1 + 63 * 47,
+        "a header and bench's 63x47 image"
+    );
+    let a = ok(&["raycast", "--all", path(&scene), path(&rays)], None);
+    let b = ok(&["raycast", "--all", path(&out), path(&rays)], None);
+    let (ra, rb) = (rows(&a), rows(&b));
+    assert_eq!(ra.len(), rb.len(), "same number of hits");
+    assert!(ra.len() > 200, "the rays hit: {} rows", ra.len());
+    let mut strand_v_differs = 0;
+    for (x, y) in ra.iter().zip(&rb) {
+        let object = x[7].unwrap();
+        if object < 2.0 {
+            assert_eq!(x, y, "cylinder rows identical");
+        } else {
+            // Ray, t, u, object and part to the bit; the normal to rounding (the frame enters
+            // its arithmetic, not its value); v is the frame's.
+            let exact = |r: &Vec<Option<f64>>| [&r[..3], &r[7..]].concat();
+            assert_eq!(
+                exact(x),
+                exact(y),
+                "strand rows identical but for v and the normal"
+            );
+            for k in 4..7 {
+                assert!(
+                    (x[k].unwrap() - y[k].unwrap()).abs() < 1e-12,
+                    "normal {x:?} {y:?}"
+                );
+            }
+            strand_v_differs += (x[3] != y[3]) as usize;
+        }
+    }
+    assert!(strand_v_differs > 0, "the strand frame is not Frenet's");
+    let elliptical = scratch(
+        "export-ellipse.toml",
+        b"[[strand]]\npoints = [[0, 0, 0], [1, 0.3, 0], [2, 0, 0.2]]\nradius = [0.1, 0.1]\nellipticity = 0.5\n",
+    );
+    let e = fails(&["export", path(&elliptical), "-o", path(&out)], None);
+    names(
+        &e,
+        &["export-ellipse.toml: cylinder 0", "not round", "Frenet"],
+    );
+}

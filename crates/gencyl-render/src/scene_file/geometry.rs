@@ -28,11 +28,30 @@ pub(super) struct RawCylinder {
     pub(super) major_radius: Spanned<Array<f64, 2>>,
     pub(super) minor_radius: Option<Spanned<Array<f64, 2>>>,
     pub(super) rotation: Option<Spanned<Array<f64, 2>>>,
-    pub(super) caps: Option<bool>,
+    pub(super) caps: Option<Caps>,
     pub(super) normal_hint: Option<Spanned<Array<f64, 3>>>,
     pub(super) profile: Option<Spanned<Vec<Array<f64, 2>>>>,
     pub(super) material: Option<Spanned<String>>,
     pub(super) transform: Option<Spanned<RawTransform>>,
+}
+
+/// `caps`: `true` or `false` for both ends (interface.md), or `[start, end]` for each (an
+/// extension: a strand segment exported by `gencyl export` keeps its caps at root and tip only).
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub(super) enum Caps {
+    Both(bool),
+    Each(Array<bool, 2>),
+}
+
+impl Caps {
+    fn ends(caps: Option<Caps>) -> [bool; 2] {
+        match caps {
+            None => [true, true],
+            Some(Caps::Both(c)) => [c, c],
+            Some(Caps::Each(a)) => a.0,
+        }
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -233,11 +252,12 @@ pub(super) fn build_cylinder(
         major_radius: major.map(|r| r * xf.scale),
         minor_radius: minor.map(|r| r * xf.scale),
         rotation,
-        caps: c.caps.unwrap_or(true),
+        caps: true,
         normal_hint: normal_hint.map(|h| xf.direction(h)),
         section: section(&c.profile)?,
     };
-    spec.build().map_err(|e| {
+    let [start, end] = Caps::ends(c.caps);
+    spec.build().map(|c| c.with_caps(start, end)).map_err(|e| {
         let msg = e.to_string();
         // Sweep messages start with the key they are about; the section's size is the radii's.
         let key = |name: &str| msg.starts_with(name);

@@ -77,6 +77,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 mod camera;
+pub mod export;
 mod geometry;
 mod lights;
 mod materials;
