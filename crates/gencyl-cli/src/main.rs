@@ -608,7 +608,9 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         )
         .map_err(anyhow::Error::msg)?;
     }
-    println!("scene,segments,load_s,bvh_s,bytes_per_segment,threads,rays,rays_per_s,hit_fraction");
+    println!(
+        "scene,segments,load_s,bvh_s,bytes_per_segment,peak_mib,rays_kind,threads,rays,rays_per_s,hit_fraction"
+    );
     type Loader<'a> = Box<dyn Fn() -> Result<SceneDescription> + 'a>;
     let mut scenes: Vec<(&str, Loader)> = vec![
         ("default", Box::new(|| Ok(builtin::default_scene()))),
@@ -633,46 +635,74 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         ));
     }
     for (name, load) in scenes {
+        // The peak resident memory of this scene's load and build (Linux: writing 5 to
+        // clear_refs resets the high-water mark VmHWM).
+        let _ = std::fs::write("/proc/self/clear_refs", "5");
         let t0 = Instant::now();
         let desc = load()?;
         let t1 = Instant::now();
         let camera = desc.camera;
         let world = World::new(desc);
         let t2 = Instant::now();
+        let peak_mib = peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1 << 20) as f64);
         let n = world.scene.cylinders().len();
-        let rays = bench_rays(&world, camera, (width, height));
-        for threads in [1, rayon::current_num_threads()] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()?;
-            let start = Instant::now();
-            let hits: usize = pool.install(|| {
-                use rayon::prelude::*;
-                rays.par_chunks(256)
-                    .map_init(Scratch::default, |scratch, chunk| {
-                        chunk
-                            .iter()
-                            .filter(|r| world.intersect(r, 0.0, f64::INFINITY, scratch).is_some())
-                            .count()
-                    })
-                    .sum()
-            });
-            let secs = start.elapsed().as_secs_f64();
-            println!(
-                "{name},{n},{:.3},{:.3},{:.0},{threads},{},{:.0},{:.3}",
-                (t1 - t0).as_secs_f64(),
-                (t2 - t1).as_secs_f64(),
-                world.scene.memory_bytes() as f64 / n.max(1) as f64,
-                rays.len(),
-                rays.len() as f64 / secs,
-                hits as f64 / rays.len() as f64
-            );
-            if threads == rayon::current_num_threads() {
-                break;
+        let camera_rays = bench_rays(&world, camera, (width, height));
+        let b = world.scene.bvh().bounds();
+        let incoherent = synth::rays_through_box(
+            camera_rays.len(),
+            1,
+            b.min,
+            b.max,
+            (b.max - b.min).max_element(),
+        );
+        for (kind, rays) in [("camera", &camera_rays), ("incoherent", &incoherent)] {
+            for threads in [1, rayon::current_num_threads()] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()?;
+                let start = Instant::now();
+                let hits: usize = pool.install(|| {
+                    use rayon::prelude::*;
+                    rays.par_chunks(256)
+                        .map_init(Scratch::default, |scratch, chunk| {
+                            chunk
+                                .iter()
+                                .filter(|r| {
+                                    world.intersect(r, 0.0, f64::INFINITY, scratch).is_some()
+                                })
+                                .count()
+                        })
+                        .sum()
+                });
+                let secs = start.elapsed().as_secs_f64();
+                println!(
+                    "{name},{n},{:.3},{:.3},{:.0},{peak_mib:.0},{kind},{threads},{},{:.0},{:.3}",
+                    (t1 - t0).as_secs_f64(),
+                    (t2 - t1).as_secs_f64(),
+                    world.scene.memory_bytes() as f64 / n.max(1) as f64,
+                    rays.len(),
+                    rays.len() as f64 / secs,
+                    hits as f64 / rays.len() as f64
+                );
+                if threads == rayon::current_num_threads() {
+                    break;
+                }
             }
         }
     }
     Ok(())
+}
+
+/// The process's peak resident memory (`VmHWM`), if the system reports it.
+fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line["VmHWM:".len()..]
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()?;
+    Some(kb * 1024)
 }
 
 fn raycast_command(args: RaycastArgs) -> Result<()> {

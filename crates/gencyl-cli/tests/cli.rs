@@ -586,9 +586,17 @@ fn bench_reports_named_scenes() {
         .collect();
     assert!(rows.len() >= 2, "rows: {out}");
     for r in &rows {
-        assert_eq!(r.len(), 9, "columns: {r:?}");
-        let rate: f64 = r[7].parse().unwrap();
+        assert_eq!(r.len(), 11, "columns: {r:?}");
+        let rate: f64 = r[9].parse().unwrap();
         assert!(rate > 0.0 && rate.is_finite(), "rays per second: {r:?}");
+        let peak: f64 = r[5].parse().unwrap();
+        assert!(peak > 1.0 && peak < 4096.0, "peak MiB: {r:?}");
+    }
+    for kind in ["camera", "incoherent"] {
+        assert!(
+            rows.iter().any(|r| r[0] == "ponytail" && r[6] == kind),
+            "{kind}: {out}"
+        );
     }
     assert!(
         rows.iter().any(|r| r[0] == "ponytail" && r[1] == "73995"),

@@ -106,10 +106,16 @@ pub fn squarish_profile(aspect: f64) -> BezierLoop {
 /// Random rays from the sphere of radius `2 * size` about the fibers' cube's centre, aimed at
 /// uniform points of the cube; directions have random lengths in `[0.5, 2)` of the distance.
 pub fn random_rays(count: usize, seed: u64, p: &FiberParams) -> Vec<Ray> {
-    let mut rng = Rng::from_seed(seed ^ 0x5eed);
     let (lo, hi) = (DVec3::splat(p.cube[0]), DVec3::splat(p.cube[1]));
+    rays_through_box(count, seed, lo, hi, (hi - lo).max_element().max(p.length))
+}
+
+/// Incoherent rays through the box `[lo, hi]`: each from a uniformly random point of the sphere
+/// of radius `2 size` about the box's centre toward a uniformly random point of the box, with a
+/// direction of random length (0.5 to 2 times the distance). Seeded, so reproducible.
+pub fn rays_through_box(count: usize, seed: u64, lo: DVec3, hi: DVec3, size: f64) -> Vec<Ray> {
+    let mut rng = Rng::from_seed(seed ^ 0x5eed);
     let centre = 0.5 * (lo + hi);
-    let size = (hi - lo).max_element().max(p.length);
     (0..count)
         .map(|_| {
             let origin = centre + 2.0 * size * rng.unit_vector();
