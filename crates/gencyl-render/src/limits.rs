@@ -63,13 +63,7 @@ pub fn check_threads(n: usize) -> Result<usize, String> {
 /// size is known and otherwise after at most `cap + 1` bytes.
 pub fn read_file(path: &Path, cap: u64, what: &str) -> io::Result<Vec<u8>> {
     let meta = std::fs::metadata(path)?;
-    let kind = file_kind(&meta);
-    if let Some(kind) = kind {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("{kind}, not a regular file or a pipe"),
-        ));
-    }
+    stream_kind(&meta)?;
     let too_big = |n: String| {
         io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -92,35 +86,33 @@ pub fn read_file(path: &Path, cap: u64, what: &str) -> io::Result<Vec<u8>> {
     Ok(out)
 }
 
-/// What a file is if it is neither a regular file nor a pipe.
-fn file_kind(meta: &std::fs::Metadata) -> Option<&'static str> {
+/// Refuses a file that is neither a regular file nor a pipe, naming what it is.
+fn stream_kind(meta: &std::fs::Metadata) -> io::Result<()> {
     use std::os::unix::fs::FileTypeExt;
     let t = meta.file_type();
-    if t.is_file() || t.is_fifo() {
-        None
+    let kind = if t.is_file() || t.is_fifo() {
+        return Ok(());
     } else if t.is_dir() {
-        Some("a folder")
+        "a folder"
     } else if t.is_char_device() {
-        Some("a character device")
+        "a character device"
     } else if t.is_block_device() {
-        Some("a block device")
+        "a block device"
     } else if t.is_socket() {
-        Some("a socket")
+        "a socket"
     } else {
-        Some("not a file")
-    }
+        "not a file"
+    };
+    Err(io::Error::new(
+        io::ErrorKind::InvalidInput,
+        format!("{kind}, not a regular file or a pipe"),
+    ))
 }
 
 /// Checks that `path` can be read as a stream (a regular file or a pipe): for the ray files,
-/// which are read line by line.
+/// which are read line by line, and EXR files, whose headers are read first.
 pub fn check_readable(path: &Path) -> io::Result<()> {
-    match file_kind(&std::fs::metadata(path)?) {
-        Some(kind) => Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("{kind}, not a regular file or a pipe"),
-        )),
-        None => Ok(()),
-    }
+    stream_kind(&std::fs::metadata(path)?)
 }
 
 /// The memory this process can still allocate, if known: the system's available memory
@@ -170,7 +162,7 @@ pub fn check_memory(need: u64, what: &str) -> Result<(), String> {
     }
 }
 
-/// A byte count for people: `1.5 GB`, `64 MiB`-style binary units.
+/// A byte count for people, in binary units: `512 bytes`, `1.5 KiB`, `64 MiB`.
 pub fn bytes(n: u64) -> String {
     const UNITS: [&str; 7] = ["bytes", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
     let mut x = n as f64;
