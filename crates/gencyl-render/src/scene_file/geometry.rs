@@ -37,11 +37,30 @@ pub(super) struct RawCylinder {
 
 /// `caps`: `true` or `false` for both ends (interface.md), or `[start, end]` for each (an
 /// extension: a strand segment exported by `gencyl export` keeps its caps at root and tip only).
-#[derive(Clone, Copy, Debug, Deserialize)]
-#[serde(untagged)]
+#[derive(Clone, Copy, Debug)]
 pub(super) enum Caps {
     Both(bool),
     Each(Array<bool, 2>),
+}
+
+impl<'de> Deserialize<'de> for Caps {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Caps;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "true, false, or [start, end]")
+            }
+            fn visit_bool<E>(self, b: bool) -> Result<Caps, E> {
+                Ok(Caps::Both(b))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, seq: A) -> Result<Caps, A::Error> {
+                Deserialize::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(Caps::Each)
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 impl Caps {

@@ -35,6 +35,14 @@ fn parses_defaults() {
     assert_eq!(s.cylinders.len(), 1, "one cylinder");
     let c = &s.cylinders[0];
     assert_eq!(c.caps(), [true, true], "caps default to true");
+    for (caps, want) in [
+        ("false", [false, false]),
+        ("[true, false]", [true, false]),
+        ("[false, true]", [false, true]),
+    ] {
+        let s = SceneDescription::parse(&format!("{GOOD}caps = {caps}\n"), "s.toml").unwrap();
+        assert_eq!(s.cylinders[0].caps(), want, "caps = {caps}");
+    }
     assert_eq!(c.sweep().minor, [0.1, 0.1], "minor defaults to major");
     assert_eq!(c.sweep().rotation, [0.0, 0.0], "rotation defaults to 0");
     assert!(
@@ -117,7 +125,11 @@ fn rejects_shapes_and_values_with_locations() {
         ),
         (
             "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.1, 0.1]\ncaps = 1\n",
-            "s.toml:4:8:",
+            "s.toml:4:8: invalid type: integer `1`, expected true, false, or [start, end]",
+        ),
+        (
+            "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.1, 0.1]\ncaps = [true]\n",
+            "s.toml:4:8: invalid length 1, expected an array of 2 elements",
         ),
         (
             "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\n",
