@@ -644,7 +644,8 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let camera = desc.camera;
         let world = World::new(desc);
         let t2 = Instant::now();
-        let peak_mib = peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1 << 20) as f64);
+        let peak_mib =
+            limits::peak_resident_memory().map_or(f64::NAN, |b| b as f64 / (1 << 20) as f64);
         let n = world.scene.cylinders().len();
         let camera_rays = bench_rays(&world, camera, (width, height));
         let b = world.scene.bvh().bounds();
@@ -691,18 +692,6 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// The process's peak resident memory (`VmHWM`), if the system reports it.
-fn peak_resident_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line["VmHWM:".len()..]
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()?;
-    Some(kb * 1024)
 }
 
 fn raycast_command(args: RaycastArgs) -> Result<()> {

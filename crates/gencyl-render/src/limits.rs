@@ -118,15 +118,7 @@ pub fn check_readable(path: &Path) -> io::Result<()> {
 /// The memory this process can still allocate, if known: the system's available memory
 /// (`MemAvailable`), and, if the address space is limited (`ulimit -v`), what is left of it.
 pub fn available_memory() -> Option<u64> {
-    let field = |text: &str, key: &str| -> Option<u64> {
-        let line = text.lines().find(|l| l.starts_with(key))?;
-        line[key.len()..].split_whitespace().next()?.parse().ok()
-    };
-    let meminfo = std::fs::read_to_string("/proc/meminfo").ok();
-    let available = meminfo
-        .as_deref()
-        .and_then(|m| field(m, "MemAvailable:"))
-        .map(|kb| kb * 1024);
+    let available = kib_field("/proc/meminfo", "MemAvailable:");
     // "Max address space   8192000000   8192000000   bytes"
     let limit = std::fs::read_to_string("/proc/self/limits")
         .ok()
@@ -138,16 +130,26 @@ pub fn available_memory() -> Option<u64> {
                 .parse::<u64>()
                 .ok()
         });
-    let used = std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| field(&s, "VmSize:"))
-        .map(|kb| kb * 1024)
-        .unwrap_or(0);
+    let used = kib_field("/proc/self/status", "VmSize:").unwrap_or(0);
     let left = limit.map(|l| l.saturating_sub(used));
     match (available, left) {
         (Some(a), Some(l)) => Some(a.min(l)),
         (a, l) => a.or(l),
     }
+}
+
+/// The process's peak resident memory (`VmHWM`), if the system reports it. Writing `5` to
+/// `/proc/self/clear_refs` resets it, to measure one phase.
+pub fn peak_resident_memory() -> Option<u64> {
+    kib_field("/proc/self/status", "VmHWM:")
+}
+
+/// A `key:   N kB` line of a `/proc` file, in bytes.
+fn kib_field(file: &str, key: &str) -> Option<u64> {
+    let text = std::fs::read_to_string(file).ok()?;
+    let line = text.lines().find(|l| l.starts_with(key))?;
+    let kib: u64 = line[key.len()..].split_whitespace().next()?.parse().ok()?;
+    Some(kib * 1024)
 }
 
 /// Refuses an allocation of about `need` bytes for `what` that the process cannot get.

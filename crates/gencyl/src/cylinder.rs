@@ -158,9 +158,24 @@ pub enum GeometryError {
     /// The sweep rule is unusable.
     #[error("{0}")]
     Sweep(String),
-    /// A size beyond what the geometry core resolves in f64 ([`crate::limits`]).
-    #[error("{0}")]
-    Unresolvable(String),
+    /// A size beyond what the geometry core resolves in f64 ([`crate::limits`]): of the axis
+    /// or of the section, and why.
+    #[error("{message}")]
+    Unresolvable {
+        /// What is out of range.
+        of: Unresolved,
+        /// The size, the limit and its reason.
+        message: String,
+    },
+}
+
+/// What a [`GeometryError::Unresolvable`] is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unresolved {
+    /// The axis' control points (too far from the origin).
+    Axis,
+    /// The section's size (too wide for the axis, or too thin for the fiber's scale).
+    Section,
 }
 
 /// The checks of [`crate::limits`]: coordinates, the section's reach against the axis' extent,
@@ -176,31 +191,40 @@ fn check_resolvable<C: CrossSection, S: SweepRule>(
         .points
         .iter()
         .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
-    let bad = |m: String| Err(GeometryError::Unresolvable(m));
+    let bad = |of, message| Err(GeometryError::Unresolvable { of, message });
     if far > MAX_COORDINATE {
-        return bad(format!(
-            "the axis reaches {} from the origin, more than {MAX_COORDINATE:.0e}: {WHY_COORDINATE}",
-            short(far)
-        ));
+        return bad(
+            Unresolved::Axis,
+            format!(
+                "the axis reaches {} from the origin, more than {MAX_COORDINATE:.0e}: {WHY_COORDINATE}",
+                short(far)
+            ),
+        );
     }
     let [l0, l1] = sweep.scale_bound();
     let reach = l0.max(l1) * section.bounding_radius();
     if !(reach <= MAX_SECTION_TO_AXIS * extent) {
-        return bad(format!(
-            "the section reaches {} from the axis, more than {MAX_SECTION_TO_AXIS:.0e} times the axis' extent {}: {WHY_SECTION_TO_AXIS}",
-            short(reach),
-            short(extent)
-        ));
+        return bad(
+            Unresolved::Section,
+            format!(
+                "the section reaches {} from the axis, more than {MAX_SECTION_TO_AXIS:.0e} times the axis' extent {}: {WHY_SECTION_TO_AXIS}",
+                short(reach),
+                short(extent)
+            ),
+        );
     }
     if let Some(least) = sweep.least_scale() {
         let thin = least * section.bounding_radius();
         let scale = far.max(extent);
         if !(thin >= MIN_RESOLVED * scale) {
-            return bad(format!(
-                "the section is {} thin at its thinnest, less than {MIN_RESOLVED:.0e} of the fiber's scale {}: {WHY_RESOLVED}",
-                short(thin),
-                short(scale)
-            ));
+            return bad(
+                Unresolved::Section,
+                format!(
+                    "the section is {} thin at its thinnest, less than {MIN_RESOLVED:.0e} of the fiber's scale {}: {WHY_RESOLVED}",
+                    short(thin),
+                    short(scale)
+                ),
+            );
         }
     }
     Ok(())
@@ -844,16 +868,21 @@ impl FiberSpec {
         }
     }
 
+    /// The hair sweep of these radii and rotation.
+    fn sweep(&self) -> HairSweep {
+        HairSweep {
+            major: self.major_radius,
+            minor: self.minor_radius,
+            rotation: self.rotation,
+        }
+    }
+
     /// Builds the cylinder.
     pub fn build(&self) -> Result<GeneralizedCylinder, GeometryError> {
         GeneralizedCylinder::new(
             CubicBezier::new(self.bezier),
             self.section.clone(),
-            HairSweep {
-                major: self.major_radius,
-                minor: self.minor_radius,
-                rotation: self.rotation,
-            },
+            self.sweep(),
             self.caps,
             self.normal_hint,
         )
@@ -865,11 +894,7 @@ impl FiberSpec {
         GeneralizedCylinder::with_framing(
             CubicBezier::new(self.bezier),
             self.section.clone(),
-            HairSweep {
-                major: self.major_radius,
-                minor: self.minor_radius,
-                rotation: self.rotation,
-            },
+            self.sweep(),
             self.caps,
             framing,
         )

@@ -548,34 +548,46 @@ mod tests {
         }
     }
 
+    /// Checks `FrameAt::derivatives` at `u` against central differences of the frame (step
+    /// 1e-6, to 1e-7 of the rate or of 1), and returns them.
+    fn assert_rates_match_differences(
+        c: &CubicBezier,
+        framing: &Framing,
+        u: f64,
+        name: &str,
+    ) -> [DVec3; 3] {
+        let h = 1e-6;
+        let (p, m) = (
+            FrameAt::new(c, framing, u + h).frame,
+            FrameAt::new(c, framing, u - h).frame,
+        );
+        let fd = [
+            (p.t - m.t) / (2.0 * h),
+            (p.n - m.n) / (2.0 * h),
+            (p.b - m.b) / (2.0 * h),
+        ];
+        let an = FrameAt::new(c, framing, u).derivatives();
+        for k in 0..3 {
+            let scale = an[k].length().max(1.0);
+            assert!(
+                (fd[k] - an[k]).length() < 1e-7 * scale,
+                "{name} u={u} component {k}: fd {:?} exact {:?}",
+                fd[k],
+                an[k]
+            );
+        }
+        an
+    }
+
     /// Errata 2: the frame derivatives with the speed factor equal finite differences of the
     /// frame; without the factor they would be off by `|a'(u)|` (here between about 1 and 3).
     #[test]
     fn frame_derivatives_match_finite_differences() {
         let c = helix_like();
-        let h = 1e-6;
         for i in 1..20 {
             let u = i as f64 / 20.0;
             let at = FrameAt::new(&c, &Framing::Frenet, u);
-            let (p, m) = (
-                FrameAt::new(&c, &Framing::Frenet, u + h).frame,
-                FrameAt::new(&c, &Framing::Frenet, u - h).frame,
-            );
-            let fd = [
-                (p.t - m.t) / (2.0 * h),
-                (p.n - m.n) / (2.0 * h),
-                (p.b - m.b) / (2.0 * h),
-            ];
-            let an = at.derivatives();
-            for k in 0..3 {
-                let scale = an[k].length().max(1.0);
-                assert!(
-                    (fd[k] - an[k]).length() < 1e-7 * scale,
-                    "u={u} component {k}: fd {:?} formula {:?}",
-                    fd[k],
-                    an[k]
-                );
-            }
+            assert_rates_match_differences(&c, &Framing::Frenet, u, "Frenet");
             assert!(
                 (at.speed - 1.0).abs() > 0.05,
                 "test needs |a'| != 1 to test errata 2"
@@ -818,7 +830,6 @@ mod tests {
     /// nearly inflected and its speed is far from 1; and they are not the Frenet-Serret ones.
     #[test]
     fn projected_frame_derivatives_match_finite_differences() {
-        let h = 1e-6;
         for (name, c, r) in [
             ("helix", helix_like(), DVec3::new(0.3, -0.8, 0.5)),
             ("S", near_inflection(), DVec3::Z),
@@ -828,25 +839,7 @@ mod tests {
             for i in 1..40 {
                 let u = i as f64 / 40.0;
                 let at = FrameAt::new(&c, &framing, u);
-                let (p, m) = (
-                    FrameAt::new(&c, &framing, u + h).frame,
-                    FrameAt::new(&c, &framing, u - h).frame,
-                );
-                let fd = [
-                    (p.t - m.t) / (2.0 * h),
-                    (p.n - m.n) / (2.0 * h),
-                    (p.b - m.b) / (2.0 * h),
-                ];
-                let an = at.derivatives();
-                for k in 0..3 {
-                    let scale = an[k].length().max(1.0);
-                    assert!(
-                        (fd[k] - an[k]).length() < 1e-7 * scale,
-                        "{name} u={u} component {k}: fd {:?} exact {:?}",
-                        fd[k],
-                        an[k]
-                    );
-                }
+                let an = assert_rates_match_differences(&c, &framing, u, name);
                 // The Frenet-Serret formula with this frame would be wrong: n' has a part
                 // along b that is the projection frame's own turn, not the torsion's.
                 let frenet_like = FrameAt { rates: None, ..at }.derivatives();

@@ -36,7 +36,9 @@ pub mod sweep;
 mod test_rng;
 
 pub use curve::CubicBezier;
-pub use cylinder::{Aabb, FiberSpec, GeneralizedCylinder, GeometryError, Hit, Part, Ray};
+pub use cylinder::{
+    Aabb, FiberSpec, GeneralizedCylinder, GeometryError, Hit, Part, Ray, Unresolved,
+};
 pub use frame::{Frame, FrameAt, Framing};
 pub use intersect::Method;
 pub use section::{BezierLoop, CrossSection, Section, UnitCircle};

@@ -127,6 +127,8 @@ impl SweepRule for HairSweep {
         self.is_circular().then_some(self.major)
     }
 
+    /// Each message starts with the key it is about (`major_radius`, `minor_radius`,
+    /// `rotation`), so that a scene file can point at it.
     fn validate(&self) -> Result<(), String> {
         for (name, k) in [
             ("major_radius", self.major),

@@ -662,7 +662,9 @@ fn degenerate_input_is_rejected() {
         "huge but valid"
     );
     match FiberSpec::round(big.map(|p| p * 1e186), 1e199).build() {
-        Err(GeometryError::Unresolvable(m)) => assert!(m.contains("more than 1e15"), "{m}"),
+        Err(GeometryError::Unresolvable { message: m, .. }) => {
+            assert!(m.contains("more than 1e15"), "{m}")
+        }
         other => panic!("1e200 coordinates: {other:?}"),
     }
     let tiny = big.map(|p| p / 1e14 * 1e-300);
@@ -683,7 +685,7 @@ fn degenerate_input_is_rejected() {
     );
     // The section against the axis and against the fiber's scale, taper and rotation.
     let unresolvable = |spec: FiberSpec, what: &str, needle: &str| match spec.build() {
-        Err(GeometryError::Unresolvable(m) | GeometryError::Sweep(m)) => {
+        Err(GeometryError::Unresolvable { message: m, .. } | GeometryError::Sweep(m)) => {
             assert!(m.contains(needle), "{what}: {m}")
         }
         other => panic!("{what}: {other:?}"),

@@ -8,6 +8,7 @@ use std::path::Path;
 use gencyl::section::ProfileError;
 use gencyl::{
     BezierLoop, FiberSpec, GeneralizedCylinder, GeometryError, Section, Strand, StrandFraming,
+    Unresolved,
 };
 use glam::{DQuat, DVec2, DVec3};
 use rayon::prelude::*;
@@ -278,23 +279,25 @@ pub(super) fn build_cylinder(
     let [start, end] = Caps::ends(c.caps);
     spec.build().map(|c| c.with_caps(start, end)).map_err(|e| {
         let msg = e.to_string();
-        // Sweep messages start with the key they are about; the section's size is the radii's.
+        // A sweep's message starts with the key it is about (`HairSweep::validate`).
         let key = |name: &str| msg.starts_with(name);
         let span = match (&e, &c.normal_hint) {
             (GeometryError::BadNormalHint, Some(h)) => h.span(),
-            (GeometryError::Sweep(_) | GeometryError::Unresolvable(_), _) => {
-                if key("minor_radius") {
-                    c.minor_radius.as_ref().map_or(table, Spanned::span)
-                } else if key("rotation") {
-                    c.rotation.as_ref().map_or(table, Spanned::span)
-                } else if key("major_radius") || key("the section") {
-                    c.major_radius.span()
-                } else if key("the axis") {
-                    c.bezier.span()
-                } else {
-                    table
-                }
+            (GeometryError::Sweep(_), _) if key("minor_radius") => {
+                c.minor_radius.as_ref().map_or(table, Spanned::span)
             }
+            (GeometryError::Sweep(_), _) if key("rotation") => {
+                c.rotation.as_ref().map_or(table, Spanned::span)
+            }
+            (GeometryError::Sweep(_), _) if key("major_radius") => c.major_radius.span(),
+            (GeometryError::Sweep(_), _) => table,
+            (
+                GeometryError::Unresolvable {
+                    of: Unresolved::Section,
+                    ..
+                },
+                _,
+            ) => c.major_radius.span(),
             _ => c.bezier.span(),
         };
         (span, msg)

@@ -1729,11 +1729,11 @@ pub fn scale_from_env(var: &str) -> f64 {
         .unwrap_or(1.0)
 }
 
-/// Runs `n` rays per method, the same ray sequence (from `seed`) for every method.
-pub fn run_case(case: &Case, seed: u64, runs: &[(Method, usize)]) {
+/// The ray counts of `runs` scaled by `ORACLE_GENERAL_SCALE` (the general method, and every
+/// method on a Bezier-loop section) or `ORACLE_RAYS_SCALE` (the rest), at least 1 each.
+fn scaled_runs(case: &Case, runs: &[(Method, usize)]) -> Vec<(Method, usize)> {
     let is_loop = case.loop_points.is_some();
-    let runs: Vec<(Method, usize)> = runs
-        .iter()
+    runs.iter()
         .map(|&(m, n)| {
             let slow = m == Method::General || is_loop;
             let f = scale_from_env(if slow {
@@ -1743,40 +1743,35 @@ pub fn run_case(case: &Case, seed: u64, runs: &[(Method, usize)]) {
             });
             (m, ((n as f64 * f).round() as usize).max(1))
         })
-        .collect();
-    let o = Oracle::new(&case.spec, case.loop_points.as_deref());
+        .collect()
+}
+
+/// As many random rays (from `seed`) as the largest run needs: one sequence for every method.
+fn case_rays(o: &Oracle, seed: u64, runs: &[(Method, usize)]) -> Vec<(Ray, f64, f64)> {
     let mut rng = Rng::new(seed);
-    let rays: Vec<(Ray, f64, f64)> = (0..runs.iter().map(|r| r.1).max().unwrap_or(0))
-        .map(|_| random_ray(&o, &mut rng))
-        .collect();
+    (0..runs.iter().map(|r| r.1).max().unwrap_or(0))
+        .map(|_| random_ray(o, &mut rng))
+        .collect()
+}
+
+/// Runs `n` rays per method, the same ray sequence (from `seed`) for every method.
+pub fn run_case(case: &Case, seed: u64, runs: &[(Method, usize)]) {
+    let runs = scaled_runs(case, runs);
+    let o = Oracle::new(&case.spec, case.loop_points.as_deref());
+    let rays = case_rays(&o, seed, &runs);
     run_rays(case, &o, &rays, &runs);
 }
 
 /// [`run_case`] for a fiber with a projection frame of reference `r`: the oracle is
 /// [`Oracle::new_projected`], the library's cylinder `case.spec.build_framed(Projected(r))`.
 pub fn run_case_projected(case: &Case, r: DVec3, seed: u64, runs: &[(Method, usize)]) {
-    let is_loop = case.loop_points.is_some();
-    let runs: Vec<(Method, usize)> = runs
-        .iter()
-        .map(|&(m, n)| {
-            let slow = m == Method::General || is_loop;
-            let f = scale_from_env(if slow {
-                "ORACLE_GENERAL_SCALE"
-            } else {
-                "ORACLE_RAYS_SCALE"
-            });
-            (m, ((n as f64 * f).round() as usize).max(1))
-        })
-        .collect();
+    let runs = scaled_runs(case, runs);
     let o = Oracle::new_projected(&case.spec, case.loop_points.as_deref(), r);
     let cyl = case
         .spec
         .build_framed(Framing::Projected(r))
         .unwrap_or_else(|e| panic!("fiber {} does not build: {e}", case.name));
-    let mut rng = Rng::new(seed);
-    let rays: Vec<(Ray, f64, f64)> = (0..runs.iter().map(|r| r.1).max().unwrap_or(0))
-        .map(|_| random_ray(&o, &mut rng))
-        .collect();
+    let rays = case_rays(&o, seed, &runs);
     run_rays_on(case, &o, &cyl, &rays, &runs);
 }
 
