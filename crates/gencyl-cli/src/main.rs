@@ -608,9 +608,12 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         )
         .map_err(anyhow::Error::msg)?;
     }
-    println!(
+    // Written with `?`, so a reader that stops early (`| head`) ends the run quietly.
+    let mut out = io::stdout().lock();
+    writeln!(
+        out,
         "scene,segments,load_s,bvh_s,bytes_per_segment,peak_mib,rays_kind,threads,rays,rays_per_s,hit_fraction"
-    );
+    )?;
     type Loader<'a> = Box<dyn Fn() -> Result<SceneDescription> + 'a>;
     let mut scenes: Vec<(&str, Loader)> = vec![
         ("default", Box::new(|| Ok(builtin::default_scene()))),
@@ -676,7 +679,8 @@ fn bench_command(args: BenchArgs) -> Result<()> {
                         .sum()
                 });
                 let secs = start.elapsed().as_secs_f64();
-                println!(
+                writeln!(
+                    out,
                     "{name},{n},{:.3},{:.3},{:.0},{peak_mib:.0},{kind},{threads},{},{:.0},{:.3}",
                     (t1 - t0).as_secs_f64(),
                     (t2 - t1).as_secs_f64(),
@@ -684,7 +688,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
                     rays.len(),
                     rays.len() as f64 / secs,
                     hits as f64 / rays.len() as f64
-                );
+                )?;
                 if threads == rayon::current_num_threads() {
                     break;
                 }

@@ -1081,3 +1081,27 @@ fn export_writes_the_same_geometry() {
         &["export-ellipse.toml: cylinder 0", "not round", "Frenet"],
     );
 }
+
+/// A reader that stops after the first line (`gencyl bench | head -1`) ends the run without a
+/// panic and with status 0.
+#[test]
+fn bench_output_cut_short_is_not_a_crash() {
+    use std::io::{BufRead, BufReader};
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/ponytail.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gencyl"))
+        .args(["bench", "--rays", "300", "--ponytail", path(&scene)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("scene,"), "{first}");
+    // The pipe is closed here: the next row hits a broken pipe.
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(out.status.success(), "{err}");
+}
