@@ -152,6 +152,15 @@ struct BenchArgs {
     /// 2^26, whose rays take 3 GiB).
     #[arg(long, default_value_t = 76_800, value_parser = clap::value_parser!(u32).range(1..=1 << 26))]
     rays: u32,
+    /// Only this scene (`default`, `ponytail`, `generated-1.6M`; repeatable).
+    #[arg(long = "scene")]
+    scenes: Vec<String>,
+    /// Only this ray set (`camera` or `incoherent`; repeatable).
+    #[arg(long = "kind", value_parser = ["camera", "incoherent"])]
+    kinds: Vec<String>,
+    /// Only this thread count (default: 1 and all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    threads: Option<u32>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -637,7 +646,24 @@ fn bench_command(args: BenchArgs) -> Result<()> {
             }),
         ));
     }
+    let wanted = |list: &[String], name: &str| list.is_empty() || list.iter().any(|s| s == name);
+    for s in &args.scenes {
+        if !["default", "ponytail", "generated-1.6M"].contains(&s.as_str()) {
+            bail!("--scene {s}: the scenes are default, ponytail and generated-1.6M");
+        }
+        if s == "generated-1.6M" && !args.large {
+            bail!("--scene generated-1.6M needs --large");
+        }
+    }
+    let thread_counts = match args.threads {
+        Some(t) => vec![t as usize],
+        None if rayon::current_num_threads() > 1 => vec![1, rayon::current_num_threads()],
+        None => vec![1],
+    };
     for (name, load) in scenes {
+        if !wanted(&args.scenes, name) {
+            continue;
+        }
         // The peak resident memory of this scene's load and build (Linux: writing 5 to
         // clear_refs resets the high-water mark VmHWM).
         let _ = std::fs::write("/proc/self/clear_refs", "5");
@@ -660,7 +686,10 @@ fn bench_command(args: BenchArgs) -> Result<()> {
             (b.max - b.min).max_element(),
         );
         for (kind, rays) in [("camera", &camera_rays), ("incoherent", &incoherent)] {
-            for threads in [1, rayon::current_num_threads()] {
+            if !wanted(&args.kinds, kind) {
+                continue;
+            }
+            for &threads in &thread_counts {
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .build()?;
@@ -689,9 +718,6 @@ fn bench_command(args: BenchArgs) -> Result<()> {
                     rays.len() as f64 / secs,
                     hits as f64 / rays.len() as f64
                 )?;
-                if threads == rayon::current_num_threads() {
-                    break;
-                }
             }
         }
     }

@@ -1,13 +1,14 @@
 //! Building a [`Bvh`]: binned surface area heuristic as pbrt builds it ([`BINS`] bins, the
 //! widest axis or all three for the largest nodes, the exact SAH over sorted primitives in
-//! small nodes, halving splits past a depth bound), children built in parallel, the tree
-//! flattened depth-first into [`Node`]s.
+//! small nodes, halving splits past a depth bound), children built in parallel, the binary
+//! tree then collapsed depth-first into 4-wide [`Node4`]s.
 
+use arrayvec::ArrayVec;
 use gencyl::Aabb;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{BINS, Bvh, MAX_LEAF, Node, STACK};
+use super::{BINS, Bvh, Child, MAX_DEPTH, MAX_LEAF, Node4};
 
 /// Cost of visiting an interior node, relative to testing one primitive. A cylinder test that
 /// gets past its own box check costs far more than a box test, hence the small value.
@@ -206,7 +207,6 @@ enum BuildNode {
     },
     Interior {
         bounds: Bounds,
-        axis: usize,
         children: Box<[BuildNode; 2]>,
     },
 }
@@ -231,13 +231,12 @@ fn leaf(bounds: Bounds, start: usize, count: usize) -> Built {
 }
 
 /// An interior node over two built subtrees.
-fn interior(bounds: Bounds, axis: usize, a: Built, b: Built) -> Built {
+fn interior(bounds: Bounds, a: Built, b: Built) -> Built {
     Built {
         nodes: 1 + a.nodes + b.nodes,
         depth: 1 + a.depth.max(b.depth),
         node: BuildNode::Interior {
             bounds,
-            axis,
             children: Box::new([a.node, b.node]),
         },
     }
@@ -269,14 +268,14 @@ fn build(prims: &mut [Prim], start: usize, depth: usize) -> Built {
         prims.select_nth_unstable_by(n / 2, |a, b| {
             a.centroid(widest).total_cmp(&b.centroid(widest))
         });
-        (n / 2, widest)
+        n / 2
     };
-    let (mid, axis) = if ext.max_element() <= 0.0 {
+    let mid = if ext.max_element() <= 0.0 {
         // All centroids coincide: no split separates them; cut the list in half.
         if n <= MAX_LEAF {
             return leaf(bounds, start, n);
         }
-        (n / 2, 0)
+        n / 2
     } else if depth >= MAX_SAH_DEPTH {
         // Halve along the widest centroid extent, to bound the depth.
         halve(prims)
@@ -326,11 +325,7 @@ fn build(prims: &mut [Prim], start: usize, depth: usize) -> Built {
         } else {
             0
         };
-        if m == 0 || m == n {
-            halve(prims)
-        } else {
-            (m, k)
-        }
+        if m == 0 || m == n { halve(prims) } else { m }
     };
     let (left, right) = prims.split_at_mut(mid);
     let (a, b) = if n >= PARALLEL_SPLIT {
@@ -344,7 +339,7 @@ fn build(prims: &mut [Prim], start: usize, depth: usize) -> Built {
             build(right, start + mid, depth + 1),
         )
     };
-    interior(bounds, axis, a, b)
+    interior(bounds, a, b)
 }
 
 /// Builds a small subtree with the exact SAH: primitives sorted by centroid along the widest
@@ -401,7 +396,7 @@ fn build_small(prims: &mut [Prim], start: usize, depth: usize) -> Built {
         build_small(left, start, depth + 1),
         build_small(right, start + mid, depth + 1),
     );
-    interior(bounds, k, a, b)
+    interior(bounds, a, b)
 }
 
 /// Moves the elements satisfying `pred` to the front; returns how many there are.
@@ -416,39 +411,68 @@ fn partition<T>(v: &mut [T], pred: impl Fn(&T) -> bool) -> usize {
     m
 }
 
-fn flatten(node: BuildNode, out: &mut Vec<Node>) {
-    match node {
-        BuildNode::Leaf {
-            bounds,
-            start,
-            count,
-        } => out.push(Node {
-            min: bounds.min,
-            max: bounds.max,
-            offset: start as u32,
-            count: count as u16,
-            axis: 0,
-            _pad: 0,
-        }),
-        BuildNode::Interior {
-            bounds,
-            axis,
-            children,
-        } => {
-            let me = out.len();
-            out.push(Node {
-                min: bounds.min,
-                max: bounds.max,
-                offset: 0,
-                count: 0,
-                axis: axis as u8,
-                _pad: 0,
-            });
-            let [a, b] = *children;
-            flatten(a, out);
-            out[me].offset = out.len() as u32;
-            flatten(b, out);
+impl BuildNode {
+    fn bounds(&self) -> &Bounds {
+        match self {
+            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds,
         }
+    }
+}
+
+/// Collapses the binary subtree `node` into 4-wide nodes appended to `out` (depth first, a
+/// parent before its children) and returns its slot. A wide node starts from its binary
+/// node's two children and opens the interior child of the largest surface area until it
+/// has four (Wald et al. 2008), so the boxes tested together are the large ones a ray most
+/// likely enters.
+fn collapse(node: BuildNode, out: &mut Vec<Node4>) -> Child {
+    let children = match node {
+        BuildNode::Leaf { start, count, .. } => {
+            return Child {
+                offset: start as u32,
+                count: count as u32,
+            };
+        }
+        BuildNode::Interior { children, .. } => children,
+    };
+    let mut kids: ArrayVec<BuildNode, 4> = ArrayVec::from_iter(*children as [BuildNode; 2]);
+    while kids.len() < 4 {
+        let widest = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| matches!(k, BuildNode::Interior { .. }))
+            .max_by(|a, b| {
+                a.1.bounds()
+                    .half_area()
+                    .total_cmp(&b.1.bounds().half_area())
+            })
+            .map(|(i, _)| i);
+        let Some(i) = widest else {
+            break;
+        };
+        let BuildNode::Interior { children, .. } = kids.remove(i) else {
+            unreachable!("chose an interior node")
+        };
+        let [a, b] = *children;
+        kids.insert(i, b);
+        kids.insert(i, a);
+    }
+    let me = out.len();
+    out.push(Node4 {
+        min: [[f32::INFINITY; 4]; 3],
+        max: [[f32::NEG_INFINITY; 4]; 3],
+        child: [Child::EMPTY; 4],
+    });
+    for (i, kid) in kids.into_iter().enumerate() {
+        let b = *kid.bounds();
+        for k in 0..3 {
+            out[me].min[k][i] = b.min[k];
+            out[me].max[k][i] = b.max[k];
+        }
+        out[me].child[i] = collapse(kid, out);
+    }
+    Child {
+        offset: me as u32,
+        count: 0,
     }
 }
 
@@ -486,14 +510,23 @@ impl Bvh {
             .collect();
         let built = build(&mut prims, 0, 1);
         assert!(
-            built.depth < STACK,
+            built.depth < MAX_DEPTH,
             "BVH depth {} exceeds the traversal stack",
             built.depth
         );
-        let mut nodes = Vec::with_capacity(built.nodes);
-        flatten(built.node, &mut nodes);
+        let b = *built.node.bounds();
+        // A binary tree of n nodes has (n - 1) / 2 interior ones; collapsing keeps about a
+        // third of them.
+        let mut nodes = Vec::with_capacity(built.nodes / 6 + 1);
+        let root = collapse(built.node, &mut nodes);
+        nodes.shrink_to_fit();
         Bvh {
             nodes,
+            root: Some(root),
+            bounds: Aabb {
+                min: DVec3::from_array(b.min.map(f64::from)),
+                max: DVec3::from_array(b.max.map(f64::from)),
+            },
             indices: prims.iter().map(|p| p.index).collect(),
             depth: built.depth,
         }

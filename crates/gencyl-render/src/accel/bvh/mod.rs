@@ -1,46 +1,71 @@
 //! A bounding volume hierarchy over axis-aligned boxes.
 //!
-//! Built as pbrt builds it (binned surface area heuristic, [`BINS`] bins on each axis,
-//! flattened depth-first into 32-byte nodes, the first child right after its parent); queried
-//! as parry queries it: one traversal core, [`Bvh::traverse`], takes a closure that tests a
-//! primitive and returns the best `t` so far, which serves nearest-hit (shrink `tmax`),
-//! all-hits (keep it) and any-hit (return `-inf` to stop) queries alike.
+//! Built as pbrt builds it (a binary tree by the binned surface area heuristic, [`BINS`] bins
+//! on each axis), then collapsed into a 4-wide tree as Embree stores it: each [`Node4`] holds
+//! the boxes of up to four children, which one ray tests together (four lanes of `f64`), and
+//! the children it enters are visited nearest first. Queried as parry queries it: one
+//! traversal core, [`Bvh::traverse`], takes a closure that tests a primitive and returns the
+//! best `t` so far, which serves nearest-hit (shrink `tmax`), all-hits (keep it) and any-hit
+//! (return `-inf` to stop) queries alike.
 //!
 //! Boxes are stored in `f32`, rounded outward, so each holds its primitives' `f64` boxes; the
-//! ray-box test runs in `f64`.
+//! ray-box test runs in `f64`, so it misses nothing the exact `f64` test of the same boxes
+//! would meet.
 
 use gencyl::{Aabb, Ray};
 use glam::DVec3;
+use wide::{CmpGe, CmpLe, f64x4};
 
 /// Number of SAH bins per axis.
 pub const BINS: usize = 16;
 /// Most primitives in a leaf.
 pub const MAX_LEAF: usize = 8;
-/// Traversal stack size: a bound on the depth (48 SAH levels + 32 halving levels + 1).
-const STACK: usize = 96;
+/// A bound on the binary tree's depth (48 SAH levels + 32 halving levels + 1); the 4-wide
+/// tree is no deeper.
+const MAX_DEPTH: usize = 96;
+/// Traversal stack size: each wide level pushes at most three siblings.
+const STACK: usize = 3 * MAX_DEPTH + 1;
 
 mod build;
 
-/// One flattened node: 32 bytes.
+/// A child slot of a [`Node4`]: an interior node, a leaf (a run of primitives) or nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
+struct Child {
+    /// Interior: the child node's index. Leaf: index of the first primitive in
+    /// `Bvh::indices`.
+    offset: u32,
+    /// Leaf: number of primitives (1 to [`MAX_LEAF`]). Interior: 0. Empty slot: `u32::MAX`.
+    count: u32,
+}
+
+impl Child {
+    const EMPTY: Child = Child {
+        offset: 0,
+        count: u32::MAX,
+    };
+}
+
+/// One node of the 4-wide tree: the children's boxes by axis and lane (`min[k][i]` is the
+/// lower bound of child `i` on axis `k`; an empty slot has the empty box `+inf..-inf`), and
+/// the children. 128 bytes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
-struct Node {
-    min: [f32; 3],
-    max: [f32; 3],
-    /// Leaf: index of the first primitive in `Bvh::indices`. Interior: index of the second
-    /// child (the first is the next node).
-    offset: u32,
-    /// Leaf: number of primitives (at least 1). Interior: 0.
-    count: u16,
-    /// Interior: the split axis, for front-to-back order.
-    axis: u8,
-    _pad: u8,
+struct Node4 {
+    min: [[f32; 4]; 3],
+    max: [[f32; 4]; 3],
+    child: [Child; 4],
 }
 
 /// A BVH over primitives given by their boxes, named by `u32` keys (by default their indices).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Bvh {
-    nodes: Vec<Node>,
+    /// The 4-wide nodes, the root first (none for an empty BVH).
+    nodes: Vec<Node4>,
+    /// The root's slot: interior node 0, or a single leaf.
+    root: Option<Child>,
+    /// The root's box.
+    bounds: Aabb,
     indices: Vec<u32>,
     depth: usize,
 }
@@ -50,11 +75,12 @@ pub struct Bvh {
 pub struct BvhStats {
     /// Primitives.
     pub primitives: usize,
-    /// All nodes.
+    /// 4-wide nodes.
     pub nodes: usize,
     /// Leaves.
     pub leaves: usize,
-    /// Longest root-to-leaf path (the root alone is depth 1).
+    /// Longest root-to-leaf path of the binary tree the wide one was collapsed from (the root
+    /// alone is depth 1).
     pub depth: usize,
     /// Bytes of nodes and primitive indices.
     pub bytes: usize,
@@ -67,31 +93,43 @@ impl BvhStats {
     }
 }
 
+impl Default for Bvh {
+    /// The empty BVH.
+    fn default() -> Self {
+        Bvh {
+            nodes: Vec::new(),
+            root: None,
+            bounds: Aabb::EMPTY,
+            indices: Vec::new(),
+            depth: 0,
+        }
+    }
+}
+
 impl Bvh {
     /// Whether the BVH holds no primitive.
     pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
+        self.root.is_none()
     }
 
     /// The root's box (empty for an empty BVH).
     pub fn bounds(&self) -> Aabb {
-        self.nodes.first().map_or(Aabb::EMPTY, |n| Aabb {
-            min: DVec3::from_array(n.min.map(f64::from)),
-            max: DVec3::from_array(n.max.map(f64::from)),
-        })
+        self.bounds
     }
 
     /// Bytes of nodes and indices (allocated capacity).
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.capacity() * size_of::<Node>() + self.indices.capacity() * size_of::<u32>()
+        self.nodes.capacity() * size_of::<Node4>() + self.indices.capacity() * size_of::<u32>()
     }
 
     /// Node count, depth, memory.
     pub fn stats(&self) -> BvhStats {
+        let slots = self.nodes.iter().flat_map(|n| n.child);
         BvhStats {
             primitives: self.indices.len(),
             nodes: self.nodes.len(),
-            leaves: self.nodes.iter().filter(|n| n.count > 0).count(),
+            leaves: slots.filter(|c| c.count > 0 && c.count != u32::MAX).count()
+                + usize::from(self.root.is_some_and(|c| c.count > 0)),
             depth: self.depth,
             bytes: self.memory_bytes(),
         }
@@ -101,7 +139,8 @@ impl Bvh {
     /// `[tmin, tmax]`: `visit(primitive, tmax)` tests the primitive and returns the new `tmax`
     /// (the best hit's `t` for a nearest-hit query, the same `tmax` to see everything, `-inf`
     /// to stop). Boxes are tested against the closed range, so a primitive whose hit ties with
-    /// the best so far is still visited.
+    /// the best so far is still visited. A ray with a non-finite origin or direction meets
+    /// nothing.
     pub fn traverse(
         &self,
         ray: &Ray,
@@ -110,64 +149,67 @@ impl Bvh {
         mut visit: impl FnMut(u32, f64) -> f64,
     ) {
         // Also refuses NaN bounds.
-        if self.nodes.is_empty() || tmin.is_nan() || tmax.is_nan() || tmin > tmax {
+        let Some(root) = self.root else {
+            return;
+        };
+        if tmin.is_nan() || tmax.is_nan() || tmin > tmax || !ray.origin.is_finite() {
+            return;
+        }
+        if !ray.dir.is_finite() || ray.dir == DVec3::ZERO {
             return;
         }
         let slab = Slabs::new(ray, tmin);
-        let Some(_) = slab.entry(&self.nodes[0], tmax) else {
+        if !slab.meets(&self.bounds, tmax) {
             return;
-        };
-        // Nodes still to visit, with the ray's entry into their box.
-        let mut stack = [(0u32, 0.0f64); STACK];
+        }
+        // Slots still to visit, with the ray's entry into their box.
+        let mut stack = [(Child::EMPTY, 0.0f64); STACK];
         let mut sp = 0;
-        let mut i = 0usize;
+        let mut cur = root;
         loop {
-            let n = &self.nodes[i];
-            if n.count > 0 {
-                let s = n.offset as usize;
-                for &p in &self.indices[s..s + n.count as usize] {
+            if cur.count > 0 {
+                let s = cur.offset as usize;
+                for &p in &self.indices[s..s + cur.count as usize] {
                     tmax = visit(p, tmax);
                     if tmax.is_nan() || tmax < tmin {
                         return;
                     }
                 }
             } else {
-                let (a, b) = (i + 1, n.offset as usize);
-                match (
-                    slab.entry(&self.nodes[a], tmax),
-                    slab.entry(&self.nodes[b], tmax),
-                ) {
-                    (Some(ta), Some(tb)) => {
-                        let (near, far, tf) = if !slab.neg[n.axis as usize] {
-                            (a, b, tb)
-                        } else {
-                            (b, a, ta)
-                        };
-                        stack[sp] = (far as u32, tf);
+                let n = &self.nodes[cur.offset as usize];
+                let (entry, hit) = slab.entries(n, tmax);
+                // The entered children, nearest first; the rest wait on the stack.
+                let mut near = [(Child::EMPTY, f64::INFINITY); 4];
+                let mut k = 0;
+                for i in 0..4 {
+                    if hit & (1 << i) != 0 {
+                        let mut j = k;
+                        while j > 0 && near[j - 1].1 > entry[i] {
+                            near[j] = near[j - 1];
+                            j -= 1;
+                        }
+                        near[j] = (n.child[i], entry[i]);
+                        k += 1;
+                    }
+                }
+                if k > 0 {
+                    for &item in near[1..k].iter().rev() {
+                        stack[sp] = item;
                         sp += 1;
-                        i = near;
-                        continue;
                     }
-                    (Some(_), None) => {
-                        i = a;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        i = b;
-                        continue;
-                    }
-                    (None, None) => {}
+                    cur = near[0].0;
+                    continue;
                 }
             }
-            // The next pushed node the ray still enters before tmax.
+            // The next pushed slot the ray still enters before tmax.
             loop {
                 if sp == 0 {
                     return;
                 }
                 sp -= 1;
-                let (j, t) = stack[sp];
+                let (c, t) = stack[sp];
                 if t <= tmax {
-                    i = j as usize;
+                    cur = c;
                     break;
                 }
             }
@@ -175,55 +217,81 @@ impl Bvh {
     }
 }
 
-/// A ray prepared for slab tests against `f32` boxes, in `f64`.
+/// A ray prepared for slab tests against a [`Node4`]'s four `f32` boxes, in `f64`.
 struct Slabs {
-    origin: DVec3,
-    inv: DVec3,
+    origin: [f64x4; 3],
+    inv: [f64x4; 3],
+    origin_scalar: DVec3,
+    inv_scalar: DVec3,
     neg: [bool; 3],
     /// Direction components that are zero: the ray stays in that slab or misses it entirely
     /// (`0 * inf` would be NaN in the slab test).
     flat: [bool; 3],
-    any_flat: bool,
     tmin: f64,
+}
+
+/// `[f32; 4]` widened to `f64` lanes.
+#[inline]
+fn lanes(x: &[f32; 4]) -> f64x4 {
+    f64x4::from(x.map(f64::from))
 }
 
 impl Slabs {
     fn new(ray: &Ray, tmin: f64) -> Self {
         let d = ray.dir;
-        let flat = [d.x == 0.0, d.y == 0.0, d.z == 0.0];
+        let inv = d.recip();
         Slabs {
-            origin: ray.origin,
-            inv: d.recip(),
+            origin: ray.origin.to_array().map(f64x4::splat),
+            inv: inv.to_array().map(f64x4::splat),
+            origin_scalar: ray.origin,
+            inv_scalar: inv,
             neg: [d.x < 0.0, d.y < 0.0, d.z < 0.0],
-            flat,
-            any_flat: flat.iter().any(|&f| f),
+            flat: [d.x == 0.0, d.y == 0.0, d.z == 0.0],
             tmin,
         }
     }
 
-    /// Where the ray enters the node's box within `[tmin, tmax]`, if it does.
+    /// Where the ray enters each child box within `[tmin, tmax]`, and a bit mask of the
+    /// children it meets there.
+    ///
+    /// On a slab `lo..hi` the ray is inside for `t` between `(lo - o) / d` and `(hi - o) / d`.
+    /// No NaN arises: the origin is finite, a zero direction component takes the flat case, and
+    /// `(+-inf - o) * inv` (an empty slot's bound) is infinite.
     #[inline]
-    fn entry(&self, n: &Node, tmax: f64) -> Option<f64> {
-        let mut t0 = self.tmin;
-        let mut t1 = tmax;
+    fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32) {
+        let mut t0 = f64x4::splat(self.tmin);
+        let mut t1 = f64x4::splat(tmax);
+        let mut inside = f64x4::splat(0.0).cmp_le(f64x4::splat(0.0));
         for k in 0..3 {
-            let (lo, hi) = (n.min[k] as f64, n.max[k] as f64);
-            if self.any_flat && self.flat[k] {
-                if self.origin[k] < lo || self.origin[k] > hi {
-                    return None;
+            let (lo, hi) = (lanes(&n.min[k]), lanes(&n.max[k]));
+            if self.flat[k] {
+                inside = inside & lo.cmp_le(self.origin[k]) & hi.cmp_ge(self.origin[k]);
+                continue;
+            }
+            let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
+            t0 = t0.fast_max((near - self.origin[k]) * self.inv[k]);
+            t1 = t1.fast_min((far - self.origin[k]) * self.inv[k]);
+        }
+        let hit = (t0.cmp_le(t1) & inside).move_mask();
+        (t0.to_array(), hit)
+    }
+
+    /// Whether the ray meets the box `b` within `[tmin, tmax]` (the same test, one box).
+    fn meets(&self, b: &Aabb, tmax: f64) -> bool {
+        let (mut t0, mut t1) = (self.tmin, tmax);
+        for k in 0..3 {
+            let (o, lo, hi) = (self.origin_scalar[k], b.min[k], b.max[k]);
+            if self.flat[k] {
+                if o < lo || o > hi {
+                    return false;
                 }
                 continue;
             }
-            let (a, b) = (
-                (lo - self.origin[k]) * self.inv[k],
-                (hi - self.origin[k]) * self.inv[k],
-            );
-            let (a, b) = if self.neg[k] { (b, a) } else { (a, b) };
-            // max/min ignore a NaN operand (inf - inf on an infinite box): no clipping.
-            t0 = t0.max(a);
-            t1 = t1.min(b);
+            let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
+            t0 = t0.max((near - o) * self.inv_scalar[k]);
+            t1 = t1.min((far - o) * self.inv_scalar[k]);
         }
-        (t0 <= t1).then_some(t0)
+        t0 <= t1
     }
 }
 
@@ -237,8 +305,8 @@ mod tests {
     use gencyl::Hit;
 
     #[test]
-    fn node_is_32_bytes() {
-        assert_eq!(size_of::<Node>(), 32, "node layout");
+    fn node_is_128_bytes() {
+        assert_eq!(size_of::<Node4>(), 128, "node layout");
     }
 
     #[test]
