@@ -181,14 +181,14 @@ impl Bvh {
                 // The entered children, nearest first; the rest wait on the stack.
                 let mut near = [(Child::EMPTY, f64::INFINITY); 4];
                 let mut k = 0;
-                for i in 0..4 {
+                for (i, (&child, &t)) in n.child.iter().zip(&entry).enumerate() {
                     if hit & (1 << i) != 0 {
                         let mut j = k;
-                        while j > 0 && near[j - 1].1 > entry[i] {
+                        while j > 0 && near[j - 1].1 > t {
                             near[j] = near[j - 1];
                             j -= 1;
                         }
-                        near[j] = (n.child[i], entry[i]);
+                        near[j] = (child, t);
                         k += 1;
                     }
                 }
