@@ -604,6 +604,33 @@ fn bench_reports_named_scenes() {
     );
 }
 
+/// `bench --scene --kind --threads` keeps only the rows asked for; an unknown scene is refused.
+#[test]
+fn bench_selects_rows() {
+    let out = ok(
+        &[
+            "bench",
+            "--rays",
+            "200",
+            "--scene",
+            "default",
+            "--kind",
+            "incoherent",
+            "--threads",
+            "1",
+        ],
+        None,
+    );
+    let rows: Vec<&str> = out.lines().skip(1).collect();
+    assert_eq!(rows.len(), 1, "one row: {out}");
+    let r: Vec<&str> = rows[0].split(',').collect();
+    assert_eq!((r[0], r[6], r[7]), ("default", "incoherent", "1"), "{out}");
+    let err = fails(&["bench", "--scene", "nope"], None);
+    assert!(err.contains("--scene nope"), "{err}");
+    let err = fails(&["bench", "--scene", "generated-1.6M"], None);
+    assert!(err.contains("needs --large"), "{err}");
+}
+
 // Bad input (issue: every bad input ends cleanly). Each case is small: the limits are checked
 // before anything large is allocated, so none of these needs gigabytes.
 

@@ -40,6 +40,23 @@ impl<const K: usize> Bernstein<K> {
         w[0]
     }
 
+    /// `(p(s), p'(s))` by one run of de Casteljau's algorithm: the value as [`Self::eval`]
+    /// gives it, and `p'(s) = n (w_1 - w_0)` from the two points of the last-but-one level.
+    #[inline]
+    pub fn eval_with_derivative(&self, s: f64) -> (f64, f64) {
+        if K < 2 {
+            return (self.0[0], 0.0);
+        }
+        let mut w = self.0;
+        for k in 1..K - 1 {
+            for i in 0..K - k {
+                w[i] += s * (w[i + 1] - w[i]);
+            }
+        }
+        let slope = w[1] - w[0];
+        (w[0] + s * slope, (K - 1) as f64 * slope)
+    }
+
     /// The coefficients on `[0, s]` and on `[s, 1]` (each reparametrised to `[0, 1]`).
     #[inline]
     pub fn split(&self, s: f64) -> (Self, Self) {
@@ -212,6 +229,27 @@ mod tests {
                 .map(|j| binomial(i, j) / binomial(n, j) * a[j])
                 .sum()
         }))
+    }
+
+    #[test]
+    fn value_and_derivative_match_the_power_form() {
+        let mut rng = Lcg(5);
+        for _ in 0..50 {
+            let a: [f64; 7] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+            let da: Vec<f64> = (1..7).map(|j| j as f64 * a[j]).collect();
+            let p = from_power(&a);
+            for s in [0.0, 0.25, rng.range(0.0, 1.0), 1.0] {
+                let (v, d) = p.eval_with_derivative(s);
+                assert_eq!(v, p.eval(s), "the value is eval's, bit for bit");
+                assert!((v - power(&a, s)).abs() < 1e-13, "value at {s}");
+                assert!((d - power(&da, s)).abs() < 1e-12, "derivative at {s}: {d}");
+            }
+        }
+        assert_eq!(
+            Bernstein([3.0]).eval_with_derivative(0.5),
+            (3.0, 0.0),
+            "constant"
+        );
     }
 
     #[test]

@@ -107,15 +107,23 @@ impl Polys {
         }
     }
 
+    /// `H` of branch `sign` at `s`, in `f64` (the same value [`Self::branch`] gives).
+    #[inline]
+    fn h(&self, s: f64, sign: f64) -> f64 {
+        let root = self.disc.eval(s).max(0.0).sqrt();
+        -self.p.eval(s) + sign * self.z_s.eval(s) * root
+    }
+
     /// `(H, H')` of branch `sign` at `s`, in `f64`.
     #[inline]
     fn branch(&self, s: f64, sign: f64) -> (f64, f64) {
-        let dsc = self.disc.eval(s).max(0.0);
-        let root = dsc.sqrt();
-        let zs = self.z_s.eval(s);
-        let h = -self.p.eval(s) + sign * zs * root;
-        let dh = -self.p_s.eval(s)
-            + sign * (self.z_ss.eval(s) * root + zs * self.disc_s.eval(s) / (2.0 * root));
+        // One de Casteljau run gives each polynomial and its derivative.
+        let (dsc, dsc_s) = self.disc.eval_with_derivative(s);
+        let root = dsc.max(0.0).sqrt();
+        let (zs, zss) = self.z_s.eval_with_derivative(s);
+        let (p, ps) = self.p.eval_with_derivative(s);
+        let h = -p + sign * zs * root;
+        let dh = -ps + sign * (zss * root + zs * dsc_s / (2.0 * root));
         (h, dh)
     }
 }
@@ -208,7 +216,6 @@ fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16
         if h.excludes_zero() {
             continue;
         }
-        let (fa, fb) = (value(c.s0).0, value(c.s1).0);
         let narrow =
             c.s1 - c.s0 <= MIN_WIDTH || cells > BUDGET || stack.len() + 2 > stack.capacity();
         // H' = -P' ± (Z'' sqrt(D) + Z' D' / (2 sqrt(D))), bounded only where D > 0 on the cell.
@@ -220,6 +227,7 @@ fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16
             dh.excludes_zero()
         };
         if monotone || narrow {
+            let (fa, fb) = (k.h(c.s0, sign), k.h(c.s1, sign));
             if let Some(r) = bracketed_root(&value, c.s0, c.s1, fa, fb)
                 && !out.is_full()
                 && out.last().is_none_or(|&l| r > l)

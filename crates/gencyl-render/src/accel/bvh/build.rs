@@ -419,12 +419,32 @@ impl BuildNode {
     }
 }
 
+/// `x - c` rounded down to an `f32` (the `f64` difference is within an ulp of the exact one).
+fn relative_down(x: f32, c: f64) -> f32 {
+    let d = x as f64 - c;
+    if d.is_finite() {
+        down(d - d.abs() * f64::EPSILON)
+    } else {
+        d as f32
+    }
+}
+
+/// `x - c` rounded up to an `f32`.
+fn relative_up(x: f32, c: f64) -> f32 {
+    let d = x as f64 - c;
+    if d.is_finite() {
+        up(d + d.abs() * f64::EPSILON)
+    } else {
+        d as f32
+    }
+}
+
 /// Collapses the binary subtree `node` into 4-wide nodes appended to `out` (depth first, a
 /// parent before its children) and returns its slot. A wide node starts from its binary
 /// node's two children and opens the interior child of the largest surface area until it
 /// has four (Wald et al. 2008), so the boxes tested together are the large ones a ray most
 /// likely enters.
-fn collapse(node: BuildNode, out: &mut Vec<Node4>) -> Child {
+fn collapse(node: BuildNode, center: DVec3, out: &mut Vec<Node4>) -> Child {
     let children = match node {
         BuildNode::Leaf { start, count, .. } => {
             return Child {
@@ -465,10 +485,10 @@ fn collapse(node: BuildNode, out: &mut Vec<Node4>) -> Child {
     for (i, kid) in kids.into_iter().enumerate() {
         let b = *kid.bounds();
         for k in 0..3 {
-            out[me].min[k][i] = b.min[k];
-            out[me].max[k][i] = b.max[k];
+            out[me].min[k][i] = relative_down(b.min[k], center[k]);
+            out[me].max[k][i] = relative_up(b.max[k], center[k]);
         }
-        out[me].child[i] = collapse(kid, out);
+        out[me].child[i] = collapse(kid, center, out);
     }
     Child {
         offset: me as u32,
@@ -518,7 +538,10 @@ impl Bvh {
         // A binary tree of n nodes has (n - 1) / 2 interior ones; collapsing keeps about a
         // third of them.
         let mut nodes = Vec::with_capacity(built.nodes / 6 + 1);
-        let root = collapse(built.node, &mut nodes);
+        let center = DVec3::from_array(std::array::from_fn(|k| {
+            0.5 * (fin(b.min[k]) + fin(b.max[k]))
+        }));
+        let root = collapse(built.node, center, &mut nodes);
         nodes.shrink_to_fit();
         Bvh {
             nodes,
@@ -527,6 +550,7 @@ impl Bvh {
                 min: DVec3::from_array(b.min.map(f64::from)),
                 max: DVec3::from_array(b.max.map(f64::from)),
             },
+            center,
             indices: prims.iter().map(|p| p.index).collect(),
             depth: built.depth,
         }

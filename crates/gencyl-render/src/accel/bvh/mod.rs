@@ -12,9 +12,12 @@
 //! ray-box test runs in `f64`, so it misses nothing the exact `f64` test of the same boxes
 //! would meet.
 
+use arrayvec::ArrayVec;
 use gencyl::{Aabb, Ray};
 use glam::DVec3;
-use wide::{CmpGe, CmpLe, f64x4};
+use wide::{CmpGe, CmpLe, f32x4, f64x4};
+
+use build::{down, up};
 
 /// Number of SAH bins per axis.
 pub const BINS: usize = 16;
@@ -66,6 +69,9 @@ pub struct Bvh {
     root: Option<Child>,
     /// The root's box.
     bounds: Aabb,
+    /// The point node boxes are stored relative to (the root box's centre), so that their `f32`
+    /// bounds keep their precision far from the world's origin.
+    center: DVec3,
     indices: Vec<u32>,
     depth: usize,
 }
@@ -100,6 +106,7 @@ impl Default for Bvh {
             nodes: Vec::new(),
             root: None,
             bounds: Aabb::EMPTY,
+            center: DVec3::ZERO,
             indices: Vec::new(),
             depth: 0,
         }
@@ -141,13 +148,7 @@ impl Bvh {
     /// to stop). Boxes are tested against the closed range, so a primitive whose hit ties with
     /// the best so far is still visited. A ray with a non-finite origin or direction meets
     /// nothing.
-    pub fn traverse(
-        &self,
-        ray: &Ray,
-        tmin: f64,
-        mut tmax: f64,
-        mut visit: impl FnMut(u32, f64) -> f64,
-    ) {
+    pub fn traverse(&self, ray: &Ray, tmin: f64, tmax: f64, visit: impl FnMut(u32, f64) -> f64) {
         // Also refuses NaN bounds.
         let Some(root) = self.root else {
             return;
@@ -158,13 +159,29 @@ impl Bvh {
         if !ray.dir.is_finite() || ray.dir == DVec3::ZERO {
             return;
         }
-        let slab = Slabs::new(ray, tmin);
-        if !slab.meets(&self.bounds, tmax) {
+        let slab = Slabs::new(ray, self.center, tmin);
+        if !slab.meets(&self.bounds, ray, tmax) {
             return;
         }
-        // Slots still to visit, with the ray's entry into their box.
-        let mut stack = [(Child::EMPTY, 0.0f64); STACK];
-        let mut sp = 0;
+        match Slabs32::new(&slab, tmin) {
+            Some(fast) => self.walk(root, &fast, tmin, tmax, visit),
+            None => self.walk(root, &slab, tmin, tmax, visit),
+        }
+    }
+
+    /// The traversal proper, with the box test `slab`.
+    #[inline]
+    fn walk(
+        &self,
+        root: Child,
+        slab: &impl BoxTest,
+        tmin: f64,
+        mut tmax: f64,
+        mut visit: impl FnMut(u32, f64) -> f64,
+    ) {
+        // Slots still to visit, with the ray's entry into their box (never later than the true
+        // entry).
+        let mut stack: ArrayVec<(Child, f64), STACK> = ArrayVec::new();
         let mut cur = root;
         loop {
             if cur.count > 0 {
@@ -193,21 +210,16 @@ impl Bvh {
                     }
                 }
                 if k > 0 {
-                    for &item in near[1..k].iter().rev() {
-                        stack[sp] = item;
-                        sp += 1;
-                    }
+                    stack.extend(near[1..k].iter().rev().copied());
                     cur = near[0].0;
                     continue;
                 }
             }
             // The next pushed slot the ray still enters before tmax.
             loop {
-                if sp == 0 {
+                let Some((c, t)) = stack.pop() else {
                     return;
-                }
-                sp -= 1;
-                let (c, t) = stack[sp];
+                };
                 if t <= tmax {
                     cur = c;
                     break;
@@ -217,15 +229,26 @@ impl Bvh {
     }
 }
 
-/// A ray prepared for slab tests against a [`Node4`]'s four `f32` boxes, in `f64`.
+/// A ray-box test of a node's four children: where the ray enters each box within
+/// `[tmin, tmax]` (never later than it truly does), and a bit mask of the boxes it meets
+/// there (never missing one it truly meets).
+trait BoxTest {
+    fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32);
+}
+
+/// A ray prepared for slab tests against a [`Node4`]'s four `f32` boxes, in `f64`: the
+/// general test, for any ray.
+///
+/// Node boxes are stored relative to the BVH's centre `c`, so the ray's origin is taken as
+/// `o - c`. On a slab `lo..hi` the ray is inside for `t` between `(lo - o) / d` and
+/// `(hi - o) / d`. No NaN arises: the origin is finite, a zero direction component takes the
+/// flat case (`0 * inf` would be NaN), and `(+-inf - o) * inv` (an empty slot's bound) is
+/// infinite.
 struct Slabs {
-    origin: [f64x4; 3],
-    inv: [f64x4; 3],
-    origin_scalar: DVec3,
-    inv_scalar: DVec3,
+    origin: DVec3,
+    inv: DVec3,
     neg: [bool; 3],
-    /// Direction components that are zero: the ray stays in that slab or misses it entirely
-    /// (`0 * inf` would be NaN in the slab test).
+    /// Direction components that are zero: the ray stays in that slab or misses it entirely.
     flat: [bool; 3],
     tmin: f64,
 }
@@ -237,50 +260,22 @@ fn lanes(x: &[f32; 4]) -> f64x4 {
 }
 
 impl Slabs {
-    fn new(ray: &Ray, tmin: f64) -> Self {
+    fn new(ray: &Ray, center: DVec3, tmin: f64) -> Self {
         let d = ray.dir;
-        let inv = d.recip();
         Slabs {
-            origin: ray.origin.to_array().map(f64x4::splat),
-            inv: inv.to_array().map(f64x4::splat),
-            origin_scalar: ray.origin,
-            inv_scalar: inv,
+            origin: ray.origin - center,
+            inv: d.recip(),
             neg: [d.x < 0.0, d.y < 0.0, d.z < 0.0],
             flat: [d.x == 0.0, d.y == 0.0, d.z == 0.0],
             tmin,
         }
     }
 
-    /// Where the ray enters each child box within `[tmin, tmax]`, and a bit mask of the
-    /// children it meets there.
-    ///
-    /// On a slab `lo..hi` the ray is inside for `t` between `(lo - o) / d` and `(hi - o) / d`.
-    /// No NaN arises: the origin is finite, a zero direction component takes the flat case, and
-    /// `(+-inf - o) * inv` (an empty slot's bound) is infinite.
-    #[inline]
-    fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32) {
-        let mut t0 = f64x4::splat(self.tmin);
-        let mut t1 = f64x4::splat(tmax);
-        let mut inside = f64x4::splat(0.0).cmp_le(f64x4::splat(0.0));
-        for k in 0..3 {
-            let (lo, hi) = (lanes(&n.min[k]), lanes(&n.max[k]));
-            if self.flat[k] {
-                inside = inside & lo.cmp_le(self.origin[k]) & hi.cmp_ge(self.origin[k]);
-                continue;
-            }
-            let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
-            t0 = t0.fast_max((near - self.origin[k]) * self.inv[k]);
-            t1 = t1.fast_min((far - self.origin[k]) * self.inv[k]);
-        }
-        let hit = (t0.cmp_le(t1) & inside).move_mask();
-        (t0.to_array(), hit)
-    }
-
-    /// Whether the ray meets the box `b` within `[tmin, tmax]` (the same test, one box).
-    fn meets(&self, b: &Aabb, tmax: f64) -> bool {
+    /// Whether the ray meets the box `b` (in world coordinates) within `[tmin, tmax]`.
+    fn meets(&self, b: &Aabb, ray: &Ray, tmax: f64) -> bool {
         let (mut t0, mut t1) = (self.tmin, tmax);
         for k in 0..3 {
-            let (o, lo, hi) = (self.origin_scalar[k], b.min[k], b.max[k]);
+            let (o, lo, hi) = (ray.origin[k], b.min[k], b.max[k]);
             if self.flat[k] {
                 if o < lo || o > hi {
                     return false;
@@ -288,16 +283,134 @@ impl Slabs {
                 continue;
             }
             let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
-            t0 = t0.max((near - o) * self.inv_scalar[k]);
-            t1 = t1.min((far - o) * self.inv_scalar[k]);
+            t0 = t0.max((near - o) * self.inv[k]);
+            t1 = t1.min((far - o) * self.inv[k]);
         }
         t0 <= t1
     }
 }
 
+impl BoxTest for Slabs {
+    #[inline]
+    fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32) {
+        let mut t0 = f64x4::splat(self.tmin);
+        let mut t1 = f64x4::splat(tmax);
+        let mut inside = f64x4::splat(0.0).cmp_le(f64x4::splat(0.0));
+        for k in 0..3 {
+            let (lo, hi) = (lanes(&n.min[k]), lanes(&n.max[k]));
+            let o = f64x4::splat(self.origin[k]);
+            if self.flat[k] {
+                inside = inside & lo.cmp_le(o) & hi.cmp_ge(o);
+                continue;
+            }
+            let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
+            let inv = f64x4::splat(self.inv[k]);
+            t0 = t0.fast_max((near - o) * inv);
+            t1 = t1.fast_min((far - o) * inv);
+        }
+        let hit = (t0.cmp_le(t1) & inside).move_mask();
+        (t0.to_array(), hit)
+    }
+}
+
+/// The same test in `f32` lanes, rounded so that it never misses a box the exact test meets:
+/// the fast path, for rays with `tmin >= 0` whose origin and inverse direction are well inside
+/// `f32`'s range.
+///
+/// With `x = lo - o` and the ray's `1 / d`, each computed `fl(fl(x') inv')` is within
+/// `(1 + 2^-24)^2` of `x' inv'`; the near plane takes the origin rounded toward the box
+/// (`o' >= o` when `d > 0`, so `x' <= x`) and `|inv'| <= |1/d| (1 - EPS)`, the far plane the
+/// opposite, so the near value is never above the true one where it is positive, the far
+/// value never below it where it is positive, and signs survive rounding: with `tmin >= 0`
+/// only positive values can decide. `TINY` covers underflow.
+struct Slabs32 {
+    near_o: [f32x4; 3],
+    far_o: [f32x4; 3],
+    near_inv: [f32x4; 3],
+    far_inv: [f32x4; 3],
+    neg: [bool; 3],
+    flat: [bool; 3],
+    tmin: f32x4,
+}
+
+/// The relative margin of the `f32` test's inverse directions (the rounding needs `2^-22`).
+const EPS: f64 = 1.0 / (1u64 << 20) as f64;
+/// An absolute margin for values that underflow.
+const TINY: f32 = f32::MIN_POSITIVE;
+/// The largest origin coordinate or inverse direction (and the smallest inverse) the `f32`
+/// test takes.
+const F32_SAFE: f64 = 1e30;
+
+impl Slabs32 {
+    fn new(s: &Slabs, tmin: f64) -> Option<Self> {
+        if !(tmin >= 0.0) {
+            return None;
+        }
+        for k in 0..3 {
+            let inv = s.inv[k].abs();
+            if !(s.origin[k].abs() <= F32_SAFE)
+                || (!s.flat[k] && !(inv <= F32_SAFE && inv >= 1.0 / F32_SAFE))
+            {
+                return None;
+            }
+        }
+        let mut near_o = [0.0f32; 3];
+        let mut far_o = [0.0f32; 3];
+        let mut near_inv = [0.0f32; 3];
+        let mut far_inv = [0.0f32; 3];
+        for k in 0..3 {
+            let (o, inv) = (s.origin[k], s.inv[k]);
+            if s.flat[k] {
+                // The flat case checks lo <= o' (rounded up) and hi >= o'' (rounded down).
+                (near_o[k], far_o[k]) = (up(o), down(o));
+                continue;
+            }
+            let toward_zero = |x: f64| if x > 0.0 { down(x) } else { up(x) };
+            let away = |x: f64| if x > 0.0 { up(x) } else { down(x) };
+            if s.neg[k] {
+                (near_o[k], far_o[k]) = (down(o), up(o));
+            } else {
+                (near_o[k], far_o[k]) = (up(o), down(o));
+            }
+            near_inv[k] = toward_zero(inv * (1.0 - EPS));
+            far_inv[k] = away(inv * (1.0 + EPS));
+        }
+        Some(Slabs32 {
+            near_o: near_o.map(f32x4::splat),
+            far_o: far_o.map(f32x4::splat),
+            near_inv: near_inv.map(f32x4::splat),
+            far_inv: far_inv.map(f32x4::splat),
+            neg: s.neg,
+            flat: s.flat,
+            tmin: f32x4::splat(down(tmin)),
+        })
+    }
+}
+
+impl BoxTest for Slabs32 {
+    #[inline]
+    fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32) {
+        let mut t0 = self.tmin;
+        let mut t1 = f32x4::splat(up(tmax));
+        let mut inside = f32x4::splat(0.0).cmp_le(f32x4::splat(0.0));
+        for k in 0..3 {
+            let (lo, hi) = (f32x4::from(n.min[k]), f32x4::from(n.max[k]));
+            if self.flat[k] {
+                inside = inside & lo.cmp_le(self.near_o[k]) & hi.cmp_ge(self.far_o[k]);
+                continue;
+            }
+            let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
+            t0 = t0.fast_max((near - self.near_o[k]) * self.near_inv[k]);
+            t1 = t1.fast_min((far - self.far_o[k]) * self.far_inv[k]);
+        }
+        let t0 = t0 - f32x4::splat(TINY);
+        let hit = (t0.cmp_le(t1 + f32x4::splat(TINY)) & inside).move_mask();
+        (t0.to_array().map(f64::from), hit)
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::build::{down, up};
     use super::*;
     use crate::accel::{Scene, SceneHit, Scratch, sort_hits};
     use crate::sampling::SampleRng as Rng;
@@ -318,6 +431,65 @@ mod tests {
         }
         assert_eq!(up(1e300), f32::INFINITY, "beyond f32");
         assert_eq!(down(-1e300), f32::NEG_INFINITY, "beyond f32");
+    }
+
+    /// Every ray through a point of a box (inside it, on a face, at a corner) visits that
+    /// box's primitive, with the `f32` test (`tmin >= 0`) and the `f64` one (negative `tmin`,
+    /// or directions too small or too large for `f32`), for boxes of every size far from
+    /// the origin and near it.
+    #[test]
+    fn rays_through_a_box_always_visit_it() {
+        let mut rng = Rng::from_seed(21);
+        for (scene, &(offset, size)) in [(0.0, 1.0), (1e4, 1e-6), (-3e7, 1e-3), (1e-3, 1e-9)]
+            .iter()
+            .enumerate()
+        {
+            let boxes: Vec<Aabb> = (0..500)
+                .map(|_| {
+                    let c =
+                        DVec3::splat(offset) + rng.in_box(DVec3::ZERO, DVec3::splat(50.0 * size));
+                    let h = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * size;
+                    Aabb {
+                        min: c - h,
+                        max: c + h,
+                    }
+                })
+                .collect();
+            let bvh = Bvh::build(&boxes);
+            let mut missed = 0;
+            for i in 0..4000 {
+                let target = i % boxes.len();
+                let b = boxes[target];
+                // A box built from f32-rounded bounds holds b; aim at b's own points.
+                let pick = |rng: &mut Rng, k: usize| match rng.next_u64() % 3 {
+                    0 => b.min[k],
+                    1 => b.max[k],
+                    _ => rng.range(b.min[k], b.max[k]),
+                };
+                let p = DVec3::new(pick(&mut rng, 0), pick(&mut rng, 1), pick(&mut rng, 2));
+                let mut d = rng.unit_vector();
+                match i % 7 {
+                    0 => d = [DVec3::X, DVec3::NEG_Y, DVec3::Z][i % 3],
+                    1 => d.x = 0.0,
+                    _ => {}
+                }
+                let scale = [1.0, 1e-35, 1e35, 1e-3][i % 4];
+                let d = d * scale;
+                let back = rng.range(0.0, 100.0 * size) / scale;
+                let ray = Ray::new(p - back * d, d);
+                let tmin = if i % 5 == 0 { -1.0 / scale } else { 0.0 };
+                let mut seen = false;
+                bvh.traverse(&ray, tmin, back * (1.0 + 1e-12) + 1e-300, |key, t| {
+                    seen |= key as usize == target;
+                    t
+                });
+                missed += usize::from(!seen);
+            }
+            assert_eq!(
+                missed, 0,
+                "scene {scene}: rays through a box that missed it"
+            );
+        }
     }
 
     #[test]
