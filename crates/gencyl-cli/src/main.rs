@@ -159,7 +159,7 @@ struct BenchArgs {
     #[arg(long = "kind", value_parser = ["camera", "incoherent"])]
     kinds: Vec<String>,
     /// Only this thread count (default: 1 and all cores).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     threads: Option<u32>,
 }
 
@@ -617,6 +617,20 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         )
         .map_err(anyhow::Error::msg)?;
     }
+    let wanted = |list: &[String], name: &str| list.is_empty() || list.iter().any(|s| s == name);
+    for s in &args.scenes {
+        if !["default", "ponytail", "generated-1.6M"].contains(&s.as_str()) {
+            bail!("--scene {s}: the scenes are default, ponytail and generated-1.6M");
+        }
+        if s == "generated-1.6M" && !args.large {
+            bail!("--scene generated-1.6M needs --large");
+        }
+    }
+    let thread_counts = match args.threads {
+        Some(t) => vec![limits::check_threads(t as usize).map_err(anyhow::Error::msg)?],
+        None if rayon::current_num_threads() > 1 => vec![1, rayon::current_num_threads()],
+        None => vec![1],
+    };
     // Written with `?`, so a reader that stops early (`| head`) ends the run quietly.
     let mut out = io::stdout().lock();
     writeln!(
@@ -646,20 +660,6 @@ fn bench_command(args: BenchArgs) -> Result<()> {
             }),
         ));
     }
-    let wanted = |list: &[String], name: &str| list.is_empty() || list.iter().any(|s| s == name);
-    for s in &args.scenes {
-        if !["default", "ponytail", "generated-1.6M"].contains(&s.as_str()) {
-            bail!("--scene {s}: the scenes are default, ponytail and generated-1.6M");
-        }
-        if s == "generated-1.6M" && !args.large {
-            bail!("--scene generated-1.6M needs --large");
-        }
-    }
-    let thread_counts = match args.threads {
-        Some(t) => vec![t as usize],
-        None if rayon::current_num_threads() > 1 => vec![1, rayon::current_num_threads()],
-        None => vec![1],
-    };
     for (name, load) in scenes {
         if !wanted(&args.scenes, name) {
             continue;

@@ -349,7 +349,7 @@ impl Slabs32 {
         for k in 0..3 {
             let inv = s.inv[k].abs();
             if !(s.origin[k].abs() <= F32_SAFE)
-                || (!s.flat[k] && !(inv <= F32_SAFE && inv >= 1.0 / F32_SAFE))
+                || !(s.flat[k] || (1.0 / F32_SAFE..=F32_SAFE).contains(&inv))
             {
                 return None;
             }
