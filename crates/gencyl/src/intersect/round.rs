@@ -18,10 +18,12 @@
 //! where `D` changes sign by the number of sign changes of its coefficients, then each branch on
 //! each stretch where `D >= 0` by enclosures of `H` and `H'` (a cell whose `H` keeps one sign holds
 //! no root, one whose `H'` keeps one sign holds at most one), and each isolated root polished by
-//! Newton's method inside its bracket. Rounding: every coefficient is within `SLACK` times its
-//! polynomial's largest coefficient of its exact value (they come from convex combinations of
-//! the control points, de Casteljau steps and short sums), and every enclosure is widened by
-//! that.
+//! Newton's method inside its bracket. Where `Z'` keeps one sign on the range, both branches are
+//! first isolated together through the polynomial `G = H+ H- = P^2 - Z'^2 D` ([`product_roots`]),
+//! which has no singular ends and costs one subdivision instead of two. Rounding: every
+//! coefficient is within `SLACK` times its polynomial's largest coefficient of its exact value
+//! (they come from convex combinations of the control points, de Casteljau steps and short
+//! sums), and every enclosure is widened by that.
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
@@ -47,6 +49,7 @@ type B3 = Bernstein<3>;
 type B5 = Bernstein<5>;
 type B6 = Bernstein<6>;
 type B7 = Bernstein<7>;
+type B11 = Bernstein<11>;
 
 /// The ray-space polynomials of one `u` range, with their rounding bounds.
 struct Polys {
@@ -242,6 +245,92 @@ fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16
     }
 }
 
+/// Most cells [`product_roots`] examines before it leaves the range to [`branch_roots`].
+const PRODUCT_BUDGET: usize = 48;
+
+/// The roots of both branches at once, as `(s, sign)` ascending in `s`, where the ray is oblique
+/// to the axis on the whole range; `None` where this cannot be certified cheaply (then
+/// [`branch_roots`] on each stretch decides).
+///
+/// `G = H+ H- = P^2 - Z'^2 D` is a polynomial (degree 10, no square root, no singular end). If
+/// `Z'` keeps one sign on the range, `G(s) = 0` means `P = ± Z' sqrt(D)` with `D >= 0`: a root
+/// of exactly one branch, the one whose `H` changes sign there (the other, `G / H`, does not
+/// vanish near it); and every branch root is a root of `G`. So the branch roots are isolated by
+/// isolating `G`'s: a cell whose Bernstein coefficients (each of a sign that its rounding bound
+/// cannot flip) show no sign change holds no root, one sign change exactly one (Descartes'
+/// rule of signs in the Bernstein basis); where also `D > 0` on the cell, both branches are
+/// smooth there and `G = H+ H-` exactly, so the root is polished on its branch.
+fn product_roots(k: &Polys) -> Option<ArrayVec<(f64, f64), 16>> {
+    if !bounds(&k.z_s, k.err_z).excludes_zero() {
+        return None;
+    }
+    let pp: B11 = k.p.mul(&k.p);
+    let zz: B5 = k.z_s.mul(&k.z_s);
+    let zzd: B11 = zz.mul(&k.disc);
+    let g = pp.sub(&zzd);
+    // Rounding: the factors' own bounds carried through the products, and the products' and
+    // the cells' de Casteljau steps relative to the terms that cancel.
+    let (pm, zm, dm) = (k.p.magnitude(), k.z_s.magnitude(), k.disc.magnitude());
+    let err = 4.0
+        * (2.0 * pm * k.err_p
+            + k.err_p * k.err_p
+            + (2.0 * zm * k.err_z + k.err_z * k.err_z) * (dm + k.err_disc)
+            + zm * zm * k.err_disc)
+        + SLACK * (pp.magnitude() + zzd.magnitude());
+    let mut found: ArrayVec<(f64, f64), 16> = ArrayVec::new();
+    let mut stack: ArrayVec<(B11, f64, f64), 32> = ArrayVec::new();
+    stack.push((g, 0.0, 1.0));
+    let mut cells = 0;
+    while let Some((c, s0, s1)) = stack.pop() {
+        cells += 1;
+        if cells > PRODUCT_BUDGET {
+            return None;
+        }
+        if c.0.iter().any(|x| x.abs() <= err) {
+            // A coefficient whose sign rounding may flip: a narrower cell may settle it.
+            if s1 - s0 < 1e-6 || stack.is_full() {
+                return None;
+            }
+        } else {
+            let changes =
+                c.0.windows(2)
+                    .filter(|w| (w[0] > 0.0) != (w[1] > 0.0))
+                    .count();
+            if changes == 0 {
+                continue;
+            }
+            // One sign change: one root of G, provided both branches are defined across the
+            // cell (D > 0 on it; where D < 0 the clamped branches both read -P and may change
+            // sign where P does). Otherwise a narrower cell about the root settles it.
+            if changes == 1 && bounds(&k.disc.restrict(s0, s1), k.err_disc).lo > 0.0 {
+                // Exactly one branch changes sign across the cell: the root is on it.
+                let h = |sign: f64| (k.h(s0, sign), k.h(s1, sign));
+                let ((m0, m1), (p0, p1)) = (h(-1.0), h(1.0));
+                let sign = match (m0 * m1 < 0.0, p0 * p1 < 0.0) {
+                    (true, false) => -1.0,
+                    (false, true) => 1.0,
+                    _ => return None,
+                };
+                let (fa, fb) = if sign < 0.0 { (m0, m1) } else { (p0, p1) };
+                let r = bracketed_root(&|s: f64| k.branch(s, sign), s0, s1, fa, fb)?;
+                if found.is_full() {
+                    return None;
+                }
+                found.push((r, sign));
+                continue;
+            }
+            if stack.is_full() {
+                return None;
+            }
+        }
+        let m = 0.5 * (s0 + s1);
+        let (l, r) = c.split(0.5);
+        stack.push((r, m, s1));
+        stack.push((l, s0, m));
+    }
+    Some(found)
+}
+
 /// The side roots of a round fiber for the local ray `o + w d` on the `u` range `[u0, u1]`.
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
@@ -256,6 +345,18 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let piece = cyl.axis.segment(u0, u1);
     let r = [r0 + (r1 - r0) * u0, r0 + (r1 - r0) * u1];
     let k = Polys::new(piece.points, r, o, d);
+    let len = d.length();
+    let found = product_roots(&k).unwrap_or_else(|| stretch_roots(&k));
+    for (s, sign) in found {
+        // The crossing of the sphere: z = Z ± sqrt(D) along d / |d| from o.
+        let w = (k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt()) / len;
+        push(cyl, o, d, u0 + (u1 - u0) * s, w, out);
+    }
+}
+
+/// The roots of both branches as `(s, sign)`, each branch on each stretch where `D >= 0`
+/// (between the roots of `D`) by [`branch_roots`]: the method for any angle.
+fn stretch_roots(k: &Polys) -> ArrayVec<(f64, f64), 16> {
     let mut ends: ArrayVec<f64, 18> = ArrayVec::new();
     ends.push(0.0);
     let mut zs = ArrayVec::new();
@@ -263,7 +364,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         .roots(&k.disc_s, k.err_disc, MIN_WIDTH, BUDGET, &mut zs);
     ends.extend(zs);
     ends.push(1.0);
-    let len = d.length();
+    let mut found = ArrayVec::new();
     for w in ends.windows(2) {
         let (a, b) = (w[0], w[1]);
         if !(b > a) || !(k.disc.eval(0.5 * (a + b)) > 0.0) {
@@ -271,15 +372,15 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         }
         for sign in [-1.0, 1.0] {
             let mut ss = ArrayVec::new();
-            branch_roots(&k, a, b, sign, &mut ss);
+            branch_roots(k, a, b, sign, &mut ss);
             for s in ss {
-                // The crossing of the sphere: z = Z ± sqrt(D) along d / |d| from o.
-                let w = (k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt()) / len;
-                let u = u0 + (u1 - u0) * s;
-                push(cyl, o, d, u, w, out);
+                if found.try_push((s, sign)).is_err() {
+                    return found;
+                }
             }
         }
     }
+    found
 }
 
 /// Records the hit at `(u, w)`, unless it repeats one (both branches meet where `D = 0`).
@@ -314,4 +415,76 @@ fn push<C: CrossSection, S: SweepRule>(
         w,
         v: crate::section::angle(DVec2::new(phi.x, phi.y)),
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_rng::Lcg;
+
+    /// Where the product method settles a range, it finds the same roots on the same branches
+    /// as the branch-by-branch subdivision: curved round fibers of radii 1e-4 to 1e-1 of their
+    /// length, on ranges about a point near the axis (as the prefilter gives them), hit from
+    /// random directions (oblique ones mostly, where the product applies).
+    #[test]
+    fn product_roots_agree_with_stretch_roots() {
+        let mut rng = Lcg(17);
+        let (mut settled, mut roots) = (0, 0);
+        for i in 0..3000 {
+            let axis: [DVec3; 4] = std::array::from_fn(|j| {
+                DVec3::new(j as f64 / 3.0, rng.range(-0.3, 0.3), rng.range(-0.3, 0.3))
+            });
+            let r0 = 10f64.powf(rng.range(-4.0, -1.0));
+            let r = [r0, r0 * rng.range(0.5, 1.5)];
+            // A ray through a point near the axis, from a random direction.
+            let s = rng.range(0.0, 1.0);
+            let v = 1.0 - s;
+            let p = axis[0] * v * v * v
+                + axis[1] * 3.0 * s * v * v
+                + axis[2] * 3.0 * s * s * v
+                + axis[3] * s * s * s;
+            let d = DVec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            let off = DVec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            ) * (1.5 * r0);
+            let o = p + off - d * rng.range(1.0, 3.0);
+            // On a range about the point, as the prefilter gives them (tens of radii wide).
+            let h = 30.0 * r0;
+            let (u0, u1) = ((s - h).max(0.0), (s + h).min(1.0));
+            let piece = crate::curve::CubicBezier::new(axis).segment(u0, u1);
+            let k = Polys::new(piece.points, r, o, d);
+            let Some(fast) = product_roots(&k) else {
+                continue;
+            };
+            settled += 1;
+            let slow = stretch_roots(&k);
+            let mut slow: Vec<_> = slow.to_vec();
+            slow.sort_by(|a, b| a.0.total_cmp(&b.0));
+            // The branch method finds a grazing root on both branches; keep one of each pair.
+            slow.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-12);
+            assert_eq!(
+                fast.len(),
+                slow.len(),
+                "case {i}: {fast:?} against {slow:?}"
+            );
+            for (f, s) in fast.iter().zip(&slow) {
+                assert!(
+                    (f.0 - s.0).abs() < 1e-12 && f.1 == s.1,
+                    "case {i}: {f:?} against {s:?}"
+                );
+            }
+            roots += fast.len();
+        }
+        assert!(
+            settled > 2000,
+            "the product should settle most oblique cases: {settled}"
+        );
+        assert!(roots > 1000, "the cases should hit: {roots} roots");
+    }
 }
