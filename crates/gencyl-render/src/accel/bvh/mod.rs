@@ -359,18 +359,23 @@ impl Slabs32 {
         let mut near_inv = [0.0f32; 3];
         let mut far_inv = [0.0f32; 3];
         for k in 0..3 {
+            // `o - c` was rounded to the nearest f64: widen by its ulp before rounding outward.
             let (o, inv) = (s.origin[k], s.inv[k]);
+            let (o_up, o_down) = (
+                up(o + o.abs() * f64::EPSILON),
+                down(o - o.abs() * f64::EPSILON),
+            );
             if s.flat[k] {
                 // The flat case checks lo <= o' (rounded up) and hi >= o'' (rounded down).
-                (near_o[k], far_o[k]) = (up(o), down(o));
+                (near_o[k], far_o[k]) = (o_up, o_down);
                 continue;
             }
             let toward_zero = |x: f64| if x > 0.0 { down(x) } else { up(x) };
             let away = |x: f64| if x > 0.0 { up(x) } else { down(x) };
             if s.neg[k] {
-                (near_o[k], far_o[k]) = (down(o), up(o));
+                (near_o[k], far_o[k]) = (o_down, o_up);
             } else {
-                (near_o[k], far_o[k]) = (up(o), down(o));
+                (near_o[k], far_o[k]) = (o_up, o_down);
             }
             near_inv[k] = toward_zero(inv * (1.0 - EPS));
             far_inv[k] = away(inv * (1.0 + EPS));
