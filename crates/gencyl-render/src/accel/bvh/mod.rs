@@ -1,16 +1,17 @@
 //! A bounding volume hierarchy over axis-aligned boxes.
 //!
 //! Built as pbrt builds it (a binary tree by the binned surface area heuristic, [`BINS`] bins
-//! on each axis), then collapsed into a 4-wide tree as Embree stores it: each [`Node4`] holds
-//! the boxes of up to four children, which one ray tests together (four lanes of `f64`), and
-//! the children it enters are visited nearest first. Queried as parry queries it: one
+//! on each axis), then collapsed into a 4-wide tree as Embree stores it: each `Node4` holds
+//! the boxes of up to four children, which one ray tests together (four SIMD lanes), and the
+//! children it enters are visited nearest first. Queried as parry queries it: one
 //! traversal core, [`Bvh::traverse`], takes a closure that tests a primitive and returns the
 //! best `t` so far, which serves nearest-hit (shrink `tmax`), all-hits (keep it) and any-hit
 //! (return `-inf` to stop) queries alike.
 //!
-//! Boxes are stored in `f32`, rounded outward, so each holds its primitives' `f64` boxes; the
-//! ray-box test runs in `f64`, so it misses nothing the exact `f64` test of the same boxes
-//! would meet.
+//! Boxes are stored in `f32` relative to the root's centre, rounded outward, so each holds its
+//! primitives' `f64` boxes. The ray-box test runs in `f32` lanes (`Slabs32`), rounded so
+//! that it misses no box the exact test meets, or for rays outside its range (`tmin < 0`,
+//! extreme directions or origins) in `f64` lanes (`Slabs`).
 
 use arrayvec::ArrayVec;
 use gencyl::{Aabb, Ray};
