@@ -161,6 +161,13 @@ struct BenchArgs {
     /// Only this thread count (default: 1 and all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     threads: Option<u32>,
+    /// Time the named render instead of the ray sets: the scene's own camera, [render] settings
+    /// and lights, on all cores (or --threads); prints wall-clock and CPU seconds.
+    #[arg(long)]
+    render: bool,
+    /// The scene of `--render` (`ponytail-path`: 512x512, 64 spp, max depth 16).
+    #[arg(long, default_value = "examples/ponytail-path.toml")]
+    render_scene: PathBuf,
 }
 
 #[derive(Debug, clap::Args)]
@@ -608,7 +615,81 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// CPU time of all the process's threads so far (Linux: the first field of each
+/// `/proc/self/task/*/schedstat`, nanoseconds on the CPU), in seconds.
+fn process_cpu_seconds() -> Option<f64> {
+    let mut ns = 0u64;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let stat = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        ns += stat.split_whitespace().next()?.parse::<u64>().ok()?;
+    }
+    Some(ns as f64 * 1e-9)
+}
+
+/// `bench --render`: renders `args.render_scene` as its file says (the image is not kept) and
+/// prints one CSV row: load and BVH (`prepare_s`), the render's wall clock (`render_s`), and
+/// the CPU seconds of all threads over both (`cpu_s`).
+fn bench_render(args: &BenchArgs) -> Result<()> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = args.threads {
+        builder =
+            builder.num_threads(limits::check_threads(t as usize).map_err(anyhow::Error::msg)?);
+    }
+    let pool = builder.build().context("cannot start the worker threads")?;
+    let name = args
+        .render_scene
+        .file_stem()
+        .map_or("render".into(), |s| s.to_string_lossy().into_owned());
+    let cpu0 = process_cpu_seconds();
+    let t0 = Instant::now();
+    let desc = SceneDescription::load(&args.render_scene)?;
+    let Some(camera) = desc.camera else {
+        bail!(
+            "{}: a bench render needs the scene's [camera]",
+            args.render_scene.display()
+        );
+    };
+    let table = desc.render;
+    let world = World::new(desc);
+    let defaults = RenderSettings::default();
+    let settings = RenderSettings {
+        integrator: table.integrator.unwrap_or(defaults.integrator),
+        spp: table.spp.unwrap_or(defaults.spp),
+        max_depth: table.max_depth.unwrap_or(defaults.max_depth),
+        seed: table.seed.unwrap_or(defaults.seed),
+    };
+    let window = Window::full(camera.width, camera.height);
+    let t1 = Instant::now();
+    let rendered = pool.install(|| integrator::render(&world, &camera, &settings, window, &|_| {}));
+    let t2 = Instant::now();
+    let cpu = process_cpu_seconds()
+        .zip(cpu0)
+        .map_or(f64::NAN, |(b, a)| b - a);
+    let mut out = io::stdout().lock();
+    writeln!(
+        out,
+        "render,segments,width,height,spp,max_depth,threads,prepare_s,render_s,cpu_s,non_finite_samples"
+    )?;
+    writeln!(
+        out,
+        "{name},{},{},{},{},{},{},{:.3},{:.3},{cpu:.2},{}",
+        world.scene.cylinders().len(),
+        camera.width,
+        camera.height,
+        settings.spp,
+        settings.max_depth,
+        pool.current_num_threads(),
+        (t1 - t0).as_secs_f64(),
+        (t2 - t1).as_secs_f64(),
+        rendered.non_finite_samples
+    )?;
+    Ok(())
+}
+
 fn bench_command(args: BenchArgs) -> Result<()> {
+    if args.render {
+        return bench_render(&args);
+    }
     let (width, height) = bench_image(args.rays)?;
     if args.large {
         limits::check_memory(

@@ -631,6 +631,48 @@ fn bench_selects_rows() {
     assert!(err.contains("needs --large"), "{err}");
 }
 
+/// `bench --render` renders a scene as its file says and reports its timings in one row; a
+/// scene without a camera is refused before any output.
+#[test]
+fn bench_times_a_named_render() {
+    let scene = scratch(
+        "bench-render.toml",
+        format!(
+            "[render]\nintegrator = \"path\"\nspp = 2\nmax_depth = 3\n[camera]\nposition = [0, 0, -3]\nlook_at = [0, 0, 0]\nfov = 40\nresolution = [24, 16]\n[[cylinder]]\n{AXIS}\nmajor_radius = [0.1, 0.1]\n"
+        )
+        .as_bytes(),
+    );
+    let out = ok(
+        &[
+            "bench",
+            "--render",
+            "--render-scene",
+            path(&scene),
+            "--threads",
+            "1",
+        ],
+        None,
+    );
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "a header and one row: {out}");
+    assert!(
+        lines[0].starts_with("render,segments,width,height,spp,max_depth,threads"),
+        "{out}"
+    );
+    let r: Vec<&str> = lines[1].split(',').collect();
+    assert_eq!(&r[1..7], ["1", "24", "16", "2", "3", "1"], "{out}");
+    for v in &r[7..10] {
+        let x: f64 = v.parse().unwrap();
+        assert!(x >= 0.0 && x.is_finite(), "timings: {out}");
+    }
+    let no_camera = scene_with("bench-no-camera.toml", "");
+    let err = fails(
+        &["bench", "--render", "--render-scene", path(&no_camera)],
+        None,
+    );
+    assert!(err.contains("needs the scene's [camera]"), "{err}");
+}
+
 // Bad input (issue: every bad input ends cleanly). Each case is small: the limits are checked
 // before anything large is allocated, so none of these needs gigabytes.
 
