@@ -17,7 +17,7 @@ use gencyl_render::limits;
 use gencyl_render::raycast::{self, RaycastOptions};
 use gencyl_render::scene_file::{SceneDescription, SceneError};
 use gencyl_render::scenes::{builtin, synth};
-use gencyl_render::settings::{Integrator, RenderSettings};
+use gencyl_render::settings::{Integrator, RenderTable};
 use gencyl_render::transport::{World, integrator};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -359,19 +359,12 @@ fn render_command(args: RenderArgs) -> Result<()> {
             world.lights.push(light);
             world.environment = Some(env);
         }
-        let defaults = RenderSettings::default();
-        let settings = RenderSettings {
-            integrator: args
-                .integrator
-                .or(table.integrator)
-                .unwrap_or(defaults.integrator),
-            spp: args.spp.or(table.spp).unwrap_or(defaults.spp),
-            max_depth: args
-                .max_depth
-                .or(table.max_depth)
-                .unwrap_or(defaults.max_depth),
-            seed: args.seed.or(table.seed).unwrap_or(defaults.seed),
-        };
+        let settings = table.settings(&RenderTable {
+            integrator: args.integrator,
+            spp: args.spp,
+            max_depth: args.max_depth,
+            seed: args.seed,
+        });
         let window = match &args.crop {
             Some(c) => Window::parse(c, camera.width, camera.height)
                 .map_err(|e| anyhow::anyhow!("--crop: {e}"))?,
@@ -651,13 +644,7 @@ fn bench_render(args: &BenchArgs) -> Result<()> {
     };
     let table = desc.render;
     let world = World::new(desc);
-    let defaults = RenderSettings::default();
-    let settings = RenderSettings {
-        integrator: table.integrator.unwrap_or(defaults.integrator),
-        spp: table.spp.unwrap_or(defaults.spp),
-        max_depth: table.max_depth.unwrap_or(defaults.max_depth),
-        seed: table.seed.unwrap_or(defaults.seed),
-    };
+    let settings = table.settings(&RenderTable::default());
     let window = Window::full(camera.width, camera.height);
     let t1 = Instant::now();
     let rendered = pool.install(|| integrator::render(&world, &camera, &settings, window, &|_| {}));

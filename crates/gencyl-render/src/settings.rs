@@ -90,3 +90,55 @@ pub struct RenderTable {
     /// `seed` of the per-pixel sample streams.
     pub seed: Option<u64>,
 }
+
+impl RenderTable {
+    /// The settings to render with: each of `overrides` (the command line's) where it is
+    /// given, else this table's, else [`RenderSettings::default`]'s.
+    pub fn settings(&self, overrides: &RenderTable) -> RenderSettings {
+        let d = RenderSettings::default();
+        RenderSettings {
+            integrator: overrides
+                .integrator
+                .or(self.integrator)
+                .unwrap_or(d.integrator),
+            spp: overrides.spp.or(self.spp).unwrap_or(d.spp),
+            max_depth: overrides
+                .max_depth
+                .or(self.max_depth)
+                .unwrap_or(d.max_depth),
+            seed: overrides.seed.or(self.seed).unwrap_or(d.seed),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The command line's value wins, then the scene's `[render]`, then the default.
+    #[test]
+    fn overrides_then_table_then_defaults() {
+        let table = RenderTable {
+            spp: Some(7),
+            max_depth: Some(3),
+            ..RenderTable::default()
+        };
+        let cli = RenderTable {
+            max_depth: Some(9),
+            seed: Some(42),
+            ..RenderTable::default()
+        };
+        let s = table.settings(&cli);
+        let d = RenderSettings::default();
+        assert_eq!(
+            (s.integrator, s.spp, s.max_depth, s.seed),
+            (d.integrator, 7, 9, 42),
+            "{s:?}"
+        );
+        assert_eq!(
+            RenderTable::default().settings(&RenderTable::default()),
+            d,
+            "all defaults"
+        );
+    }
+}
