@@ -159,8 +159,8 @@ struct BenchArgs {
     #[arg(long = "kind", value_parser = ["camera", "incoherent"])]
     kinds: Vec<String>,
     /// Only this thread count (default: 1 and all cores).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
-    threads: Option<u32>,
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
     /// Time the named render instead of the ray sets: the scene's own camera, [render] settings
     /// and lights, on all cores (or --threads); prints wall-clock and CPU seconds.
     #[arg(long)]
@@ -623,12 +623,7 @@ fn process_cpu_seconds() -> Option<f64> {
 /// prints one CSV row: load and BVH (`prepare_s`), the render's wall clock (`render_s`), and
 /// the CPU seconds of all threads over both (`cpu_s`).
 fn bench_render(args: &BenchArgs) -> Result<()> {
-    let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(t) = args.threads {
-        builder =
-            builder.num_threads(limits::check_threads(t as usize).map_err(anyhow::Error::msg)?);
-    }
-    let pool = builder.build().context("cannot start the worker threads")?;
+    let pool = thread_pool(args.threads)?;
     let name = args
         .render_scene
         .file_stem()

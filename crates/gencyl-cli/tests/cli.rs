@@ -984,33 +984,17 @@ fn outputs_are_checked_first_and_nothing_is_left_behind() {
     ]);
     assert_eq!(&std::fs::read(&upper).unwrap()[1..4], b"PNG");
     // generate into a folder that does not exist, and over a folder: an error, no .partial.
-    let e = fails(
-        &[
-            "generate",
-            "--strands",
-            "10",
-            "--segments",
-            "2",
-            "-o",
-            "/nonexistent-folder/g.hair",
-        ],
-        None,
-    );
+    let generate_into = |out: &str| {
+        fails(
+            &["generate", "--strands", "10", "--segments", "2", "-o", out],
+            None,
+        )
+    };
+    let e = generate_into("/nonexistent-folder/g.hair");
     names(&e, &["does not exist"]);
     let target = dir.join("a-folder.hair");
     std::fs::create_dir_all(&target).unwrap();
-    let e = fails(
-        &[
-            "generate",
-            "--strands",
-            "10",
-            "--segments",
-            "2",
-            "-o",
-            path(&target),
-        ],
-        None,
-    );
+    let e = generate_into(path(&target));
     names(&e, &["a-folder.hair", "it is a folder"]);
     assert!(
         !dir.join("a-folder.hair.partial").exists(),
