@@ -16,6 +16,7 @@ use gencyl_render::formats::{Film, Window, hair};
 use gencyl_render::limits;
 use gencyl_render::raycast::{self, RaycastOptions};
 use gencyl_render::scene_file::{SceneDescription, SceneError};
+use gencyl_render::scenes::job::{self, PlanError, RenderJob, RenderRequest};
 use gencyl_render::scenes::{builtin, synth};
 use gencyl_render::settings::{Integrator, RenderTable};
 use gencyl_render::transport::{World, integrator};
@@ -299,6 +300,10 @@ fn render_command(args: RenderArgs) -> Result<()> {
     {
         bail!("--radius must be positive and finite, got {r}");
     }
+    let crop = match &args.crop {
+        Some(c) => Some(Window::parse_text(c).map_err(|e| anyhow::anyhow!("--crop: {e}"))?),
+        None => None,
+    };
     pool.install(|| {
         let t0 = Instant::now();
         let name = args
@@ -307,86 +312,46 @@ fn render_command(args: RenderArgs) -> Result<()> {
             .map_or("the built-in scene".to_string(), |p| p.display().to_string());
         let desc = match &args.scene {
             None => builtin::default_scene(),
-            Some(path)
-                if path
-                    .extension()
-                    .is_some_and(|e| e.eq_ignore_ascii_case("hair")) =>
-            {
-                SceneDescription::from_hair_file(path, args.radius).map_err(anyhow::Error::msg)?
-            }
             Some(path) => {
-                if args.radius.is_some() {
+                if args.radius.is_some() && !is_hair(path) {
                     bail!("--radius applies to .hair models; a scene file sets radii itself");
                 }
-                SceneDescription::load(path)?
+                SceneDescription::load_any(path, args.radius)?
             }
         };
-        let empty = desc.cylinders.is_empty() && desc.spheres.is_empty() && desc.planes.is_empty();
-        if empty {
-            warn(format!(
-                "{name} has no geometry (no cylinders, strands, hair, spheres or planes, or only empty or degenerate strands): the image shows only the sky"
-            ));
-        }
-        for (i, light) in desc.lights.iter().enumerate() {
-            if light.is_dark() {
-                warn(format!("{name}: light {i} emits nothing (its value is zero)"));
-            }
-        }
         let t1 = Instant::now();
-        let scene_camera = desc.camera;
-        let table = desc.render;
+        let (scene_camera, table) = (desc.camera, desc.render);
         let mut world = World::new(desc);
         let t2 = Instant::now();
-        let bounds = world.bounds();
-        let mut camera = scene_camera.unwrap_or_else(|| builtin::framed_camera(bounds, 640, 480));
-        if let Some(w) = args.width {
-            let h = (w as u64 * camera.height as u64 + camera.width as u64 / 2)
-                / camera.width as u64;
-            camera.height = u32::try_from(h.max(1))
-                .ok()
-                .filter(|&h| h <= 65536)
-                .ok_or_else(|| {
-                    anyhow::anyhow!(
-                        "--width {w}: the height would be {h} pixels (the camera's aspect ratio is {}:{}), more than 65536",
-                        camera.width,
-                        camera.height
-                    )
-                })?;
-            camera.width = w;
-        }
-        if world.lights.is_empty() && world.environment.is_none() {
-            let (light, env) = builtin::default_lighting(bounds);
-            world.lights.push(light);
-            world.environment = Some(env);
-        }
-        let settings = table.settings(&RenderTable {
-            integrator: args.integrator,
-            spp: args.spp,
-            max_depth: args.max_depth,
-            seed: args.seed,
-        });
-        let window = match &args.crop {
-            Some(c) => Window::parse(c, camera.width, camera.height)
-                .map_err(|e| anyhow::anyhow!("--crop: {e}"))?,
-            None => Window::full(camera.width, camera.height),
+        job::light_if_unlit(&mut world);
+        let request = RenderRequest {
+            overrides: RenderTable {
+                integrator: args.integrator,
+                spp: args.spp,
+                max_depth: args.max_depth,
+                seed: args.seed,
+            },
+            width: args.width,
+            crop,
+            max_pixels: args.max_pixels,
         };
-        let pixels = window.width() as u64 * window.height() as u64;
-        if pixels > args.max_pixels {
-            bail!(
-                "{name}: the image would be {}x{} = {pixels} pixels, more than the limit of {} (the film must fit in memory; --max-pixels raises the limit)",
-                window.width(),
-                window.height(),
-                args.max_pixels
-            );
-        }
-        // The film (f32 per channel), and a copy of it while it is encoded.
-        let channels = settings.integrator.channels().len() as u64;
-        limits::check_memory(pixels * channels * 4 * 2, &format!("a {}x{} image", window.width(), window.height()))
-            .map_err(anyhow::Error::msg)?;
-        if !empty && !sees_geometry(&world, &camera) {
-            warn(format!(
-                "the camera sees no geometry of {name} (no probe ray through a 64x48 grid of the image hits anything)"
-            ));
+        let RenderJob {
+            camera,
+            settings,
+            window,
+        } = job::plan(&world, scene_camera, &table, &request).map_err(|e| match e {
+            PlanError::Height { width, .. } => anyhow::anyhow!("--width {width}: {}", e.message()),
+            PlanError::Crop(m) => anyhow::anyhow!("--crop: {m}"),
+            PlanError::Pixels { .. } => {
+                anyhow::anyhow!(
+                    "{name}: {} (the film must fit in memory; --max-pixels raises the limit)",
+                    e.message()
+                )
+            }
+            PlanError::Memory(m) => anyhow::anyhow!("{name}: {m}"),
+        })?;
+        for w in job::warnings(&world, &camera, &name) {
+            warn(w);
         }
         let bar = if args.quiet {
             ProgressBar::hidden()
@@ -435,18 +400,10 @@ fn render_command(args: RenderArgs) -> Result<()> {
     })
 }
 
-/// Whether any ray of a 64x48 grid over the camera's image hits something.
-fn sees_geometry(world: &World, camera: &gencyl_render::optics::Camera) -> bool {
-    let mut scratch = Scratch::default();
-    (0..48).any(|j| {
-        (0..64).any(|i| {
-            let x = (i as f64 + 0.5) / 64.0 * camera.width as f64;
-            let y = (j as f64 + 0.5) / 48.0 * camera.height as f64;
-            world
-                .intersect(&camera.ray(x, y), 0.0, f64::INFINITY, &mut scratch)
-                .is_some()
-        })
-    })
+/// Whether `path` names a `.hair` model (by its extension, in any case).
+fn is_hair(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("hair"))
 }
 
 fn merge_command(args: MergeArgs) -> Result<()> {
@@ -544,18 +501,10 @@ fn export_command(args: ExportArgs) -> Result<()> {
     if let Some(p) = &args.camera_rays {
         check_output(p, &["csv", "txt", "rays"])?;
     }
-    let desc = if args
-        .scene
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("hair"))
-    {
-        SceneDescription::from_hair_file(&args.scene, args.radius).map_err(anyhow::Error::msg)?
-    } else {
-        if args.radius.is_some() {
-            bail!("--radius applies to .hair models; a scene file sets radii itself");
-        }
-        SceneDescription::load(&args.scene)?
-    };
+    if args.radius.is_some() && !is_hair(&args.scene) {
+        bail!("--radius applies to .hair models; a scene file sets radii itself");
+    }
+    let desc = SceneDescription::load_any(&args.scene, args.radius)?;
     let tables = gencyl_render::scene_file::export::cylinder_tables(&desc.cylinders)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
     let header = format!(

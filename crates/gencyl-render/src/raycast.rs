@@ -11,7 +11,9 @@ use gencyl::Ray;
 use rayon::prelude::*;
 
 use crate::accel::{Scene, SceneHit, Scratch};
-pub use crate::formats::rays::{HEADER, Num, RayFileError, format_row, parse_rays, read_rays};
+pub use crate::formats::rays::{
+    HEADER, Num, RayFileError, check_ray, format_row, parse_rays, part_number, read_rays,
+};
 
 /// What [`raycast`] reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -41,7 +43,7 @@ impl RaycastStats {
 /// Rays per parallel work item.
 const CHUNK: usize = 256;
 /// Rays intersected before their rows are written: bounds the memory held for output.
-const BLOCK: usize = 1 << 13;
+pub const BLOCK: usize = 1 << 13;
 
 /// Casts every ray against the scene on the current rayon pool and writes the CSV (header and
 /// rows, in ray order) to `out`. Rows are for hits with `t > tmin`: the nearest per ray, or
@@ -61,23 +63,9 @@ pub fn raycast(
     let mut line = String::with_capacity(256);
     for (b, block) in rays.chunks(BLOCK).enumerate() {
         let start = Instant::now();
-        let rows: Vec<Vec<(u32, SceneHit)>> = block
-            .par_chunks(CHUNK)
-            .enumerate()
-            .map(|(c, chunk)| {
-                let first = b * BLOCK + c * CHUNK;
-                let mut rows = Vec::new();
-                let (mut scratch, mut hits) = (Scratch::default(), Vec::new());
-                for (i, ray) in chunk.iter().enumerate() {
-                    hits.clear();
-                    cast(scene, ray, tmin, opts.all, &mut hits, &mut scratch);
-                    rows.extend(hits.iter().map(|&h| ((first + i) as u32, h)));
-                }
-                rows
-            })
-            .collect();
+        let rows = cast_rays(scene, block, b * BLOCK, tmin, opts.all);
         stats.intersect_time += start.elapsed();
-        for (ray, h) in rows.iter().flatten() {
+        for (ray, h) in &rows {
             line.clear();
             format_row(&mut line, *ray as usize, h);
             out.write_all(line.as_bytes())?;
@@ -86,6 +74,42 @@ pub fn raycast(
     }
     out.flush()?;
     Ok(stats)
+}
+
+/// The rows of [`raycast`] for `rays` (in parallel on the current rayon pool): `(ray number,
+/// hit)` in ray order, each ray's hits as [`cast`] gives them; ray `i` of the slice is number
+/// `first + i`.
+///
+/// # Panics
+///
+/// If a ray number does not fit in a `u32`.
+pub fn cast_rays(
+    scene: &Scene,
+    rays: &[Ray],
+    first: usize,
+    tmin: f64,
+    all: bool,
+) -> Vec<(u32, SceneHit)> {
+    assert!(
+        u32::try_from(first + rays.len()).is_ok(),
+        "ray numbers fit in u32"
+    );
+    let rows: Vec<Vec<(u32, SceneHit)>> = rays
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let first = first + c * CHUNK;
+            let mut rows = Vec::new();
+            let (mut scratch, mut hits) = (Scratch::default(), Vec::new());
+            for (i, ray) in chunk.iter().enumerate() {
+                hits.clear();
+                cast(scene, ray, tmin, all, &mut hits, &mut scratch);
+                rows.extend(hits.iter().map(|&h| ((first + i) as u32, h)));
+            }
+            rows
+        })
+        .collect();
+    rows.concat()
 }
 
 /// A ray whose direction is far from unit size is cast with the direction scaled by a power

@@ -55,6 +55,11 @@ impl Window {
     /// inside. Error messages name the problem, e.g.
     /// "crop window 0,0,900,10 reaches past the 640x480 frame".
     pub fn parse(s: &str, width: u32, height: u32) -> Result<Window, String> {
+        Window::parse_text(s)?.within(width, height)
+    }
+
+    /// Parses "x0,y0,x1,y1" (four whole numbers), not yet checked against a frame.
+    pub fn parse_text(s: &str) -> Result<Window, String> {
         // For messages: a 10 MB argument is not echoed whole.
         let shown = |t: &str| crate::limits::cut(t, 60);
         let parts: Vec<&str> = s.split(',').map(str::trim).collect();
@@ -75,7 +80,12 @@ impl Window {
                 )
             })?;
         }
-        let w = Window::new(v[0], v[1], v[2], v[3]);
+        Ok(Window::new(v[0], v[1], v[2], v[3]))
+    }
+
+    /// This window, checked against a `width x height` frame: non-empty and inside it.
+    pub fn within(self, width: u32, height: u32) -> Result<Window, String> {
+        let w = self;
         let text = format!("{},{},{},{}", w.x0, w.y0, w.x1, w.y1);
         if w.x0 >= w.x1 || w.y0 >= w.y1 {
             return Err(format!(

@@ -151,8 +151,7 @@ fn parse_line(text: &str) -> Result<Option<Ray>, String> {
     let mut v = [0.0; 6];
     for (i, (f, x)) in fields.iter().zip(numbers).enumerate() {
         v[i] = match x {
-            Ok(x) if x.is_finite() => x,
-            Ok(x) => return Err(format!("{} is not finite ({x})", FIELDS[i])),
+            Ok(x) => x,
             Err(_) if f.is_empty() => return Err(format!("{} is missing", FIELDS[i])),
             Err(_) => {
                 return Err(format!(
@@ -163,11 +162,30 @@ fn parse_line(text: &str) -> Result<Option<Ray>, String> {
             }
         };
     }
+    check_ray(v).map(Some)
+}
+
+/// The ray `ox, oy, oz, dx, dy, dz`, or what is wrong with it: a number that is not finite, a
+/// zero direction. The one check of every ray, from a file or from an array.
+pub fn check_ray(v: [f64; 6]) -> Result<Ray, String> {
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(format!("{} is not finite ({})", FIELDS[i], v[i]));
+    }
     let ray = Ray::new(DVec3::new(v[0], v[1], v[2]), DVec3::new(v[3], v[4], v[5]));
     if ray.dir == DVec3::ZERO {
         return Err("the direction (dx, dy, dz) is zero".to_string());
     }
-    Ok(Some(ray))
+    Ok(ray)
+}
+
+/// The CSV's number of a hit's part: 0 side, 1 cap at `u = 0`, 2 cap at `u = 1`, 3 seam.
+pub fn part_number(part: Part) -> u8 {
+    match part {
+        Part::Side => 0,
+        Part::StartCap => 1,
+        Part::EndCap => 2,
+        Part::Seam => 3,
+    }
 }
 
 fn truncate(s: &str, n: usize) -> String {
@@ -184,12 +202,7 @@ pub const HEADER: &str = "ray,t,u,v,nx,ny,nz,object,part";
 pub fn format_row(s: &mut String, ray: usize, h: &SceneHit) {
     use fmt::Write as _;
     let x = &h.hit;
-    let part = match x.part {
-        Part::Side => 0,
-        Part::StartCap => 1,
-        Part::EndCap => 2,
-        Part::Seam => 3,
-    };
+    let part = part_number(x.part);
     let n = x.normal;
     let _ = writeln!(
         s,

@@ -210,94 +210,158 @@ pub(super) fn section(p: &Option<Spanned<Vec<Array<f64, 2>>>>) -> Result<Section
     Ok(Section::Loop(lp))
 }
 
-/// Checks one `[[cylinder]]` table and builds its cylinder.
-pub(super) fn build_cylinder(
-    c: &RawCylinder,
-    table: Range<usize>,
-) -> Result<GeneralizedCylinder, Problem> {
-    let bezier = val(&c.bezier).map(|p| p.0);
-    if let Some(i) = bezier.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+/// Which value of a fiber's or strand's input a problem is about: the scene file points at
+/// its key, the Python bindings name the argument.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Key {
+    /// `bezier` (a fiber's control points).
+    Bezier,
+    /// `major_radius`.
+    MajorRadius,
+    /// `minor_radius`.
+    MinorRadius,
+    /// `rotation`.
+    Rotation,
+    /// `normal_hint`.
+    NormalHint,
+    /// A strand's `points` or `control_points`.
+    Points,
+    /// A strand's `radius`.
+    Radius,
+    /// A strand's `ellipticity`.
+    Ellipticity,
+    /// A strand's `twist`.
+    Twist,
+    /// The values together (no one of them is at fault).
+    Whole,
+}
+
+/// The values of a `[[cylinder]]` table (interface.md section 2), as [`build_fiber`] checks
+/// and builds them.
+#[derive(Clone, Debug, Default)]
+pub struct FiberInput {
+    /// Bezier control points `P0..P3`, before `transform`.
+    pub bezier: [[f64; 3]; 4],
+    /// `[A0, A1]`.
+    pub major_radius: [f64; 2],
+    /// `[B0, B1]` (default: the major radii, a round fiber).
+    pub minor_radius: Option<[f64; 2]>,
+    /// `[theta0, theta1]`, radians (default 0).
+    pub rotation: Option<[f64; 2]>,
+    /// Whether the caps at `u = 0` and `u = 1` are closed.
+    pub caps: [bool; 2],
+    /// Frame hint for straight axes, before `transform`.
+    pub normal_hint: Option<[f64; 3]>,
+    /// The section (default: the unit circle).
+    pub section: Section,
+    /// The similarity applied to the points, radii and hint.
+    pub transform: Similarity,
+}
+
+/// Checks a fiber's values (finite control points, positive finite radii, finite rotation,
+/// a finite non-zero hint, a sweep that stays invertible) and builds its cylinder; a problem
+/// names the [`Key`] at fault.
+pub fn build_fiber(c: &FiberInput) -> Result<GeneralizedCylinder, (Key, String)> {
+    if let Some(i) = c
+        .bezier
+        .iter()
+        .position(|p| !p.iter().all(|x| x.is_finite()))
+    {
         return Err((
-            c.bezier.span(),
-            format!("bezier control point {i} is not finite: {:?}", bezier[i]),
+            Key::Bezier,
+            format!("bezier control point {i} is not finite: {:?}", c.bezier[i]),
         ));
     }
-    let radius = |name: &str, r: &Spanned<Array<f64, 2>>| -> Result<[f64; 2], Problem> {
-        let v = val(r);
+    let radius = |key: Key, name: &str, v: [f64; 2]| -> Result<[f64; 2], (Key, String)> {
         if !v.iter().all(|x| x.is_finite()) {
-            return Err((r.span(), format!("{name} must be finite, got {v:?}")));
+            return Err((key, format!("{name} must be finite, got {v:?}")));
         }
         if !v.iter().all(|&x| x > 0.0) {
             return Err((
-                r.span(),
+                key,
                 format!("{name} must be positive at both ends, got {v:?}"),
             ));
         }
         Ok(v)
     };
-    let major = radius("major_radius", &c.major_radius)?;
+    let major = radius(Key::MajorRadius, "major_radius", c.major_radius)?;
     let minor = c
         .minor_radius
-        .as_ref()
-        .map_or(Ok(major), |r| radius("minor_radius", r))?;
-    let rotation = match &c.rotation {
-        Some(r) if !val(r).iter().all(|x| x.is_finite()) => {
-            return Err((
-                r.span(),
-                format!("rotation must be finite, got {:?}", val(r)),
-            ));
-        }
-        Some(r) => val(r),
-        None => [0.0, 0.0],
-    };
-    let normal_hint = match &c.normal_hint {
+        .map_or(Ok(major), |r| radius(Key::MinorRadius, "minor_radius", r))?;
+    let rotation = c.rotation.unwrap_or([0.0, 0.0]);
+    if !rotation.iter().all(|x| x.is_finite()) {
+        return Err((
+            Key::Rotation,
+            format!("rotation must be finite, got {rotation:?}"),
+        ));
+    }
+    let normal_hint = match c.normal_hint {
         Some(h) => {
-            let v = DVec3::from_array(val(h));
+            let v = DVec3::from_array(h);
             if !v.is_finite() || v == DVec3::ZERO {
                 return Err((
-                    h.span(),
-                    format!(
-                        "normal_hint must be a finite non-zero vector, got {:?}",
-                        val(h)
-                    ),
+                    Key::NormalHint,
+                    format!("normal_hint must be a finite non-zero vector, got {h:?}"),
                 ));
             }
             Some(v)
         }
         None => None,
     };
-    let xf = transform(&c.transform)?;
+    let xf = c.transform;
     let spec = FiberSpec {
-        bezier: bezier.map(|p| xf.point(DVec3::from_array(p))),
+        bezier: c.bezier.map(|p| xf.point(DVec3::from_array(p))),
         major_radius: major.map(|r| r * xf.scale),
         minor_radius: minor.map(|r| r * xf.scale),
         rotation,
         caps: true,
         normal_hint: normal_hint.map(|h| xf.direction(h)),
-        section: section(&c.profile)?,
+        section: c.section.clone(),
     };
-    let [start, end] = Caps::ends(c.caps);
+    let [start, end] = c.caps;
     spec.build().map(|c| c.with_caps(start, end)).map_err(|e| {
         let msg = e.to_string();
         // A sweep's message starts with the key it is about (`HairSweep::validate`).
-        let key = |name: &str| msg.starts_with(name);
-        let span = match (&e, &c.normal_hint) {
-            (GeometryError::BadNormalHint, Some(h)) => h.span(),
-            (GeometryError::Sweep(_), _) if key("minor_radius") => {
-                c.minor_radius.as_ref().map_or(table, Spanned::span)
-            }
-            (GeometryError::Sweep(_), _) if key("rotation") => {
-                c.rotation.as_ref().map_or(table, Spanned::span)
-            }
-            (GeometryError::Sweep(_), _) if key("major_radius") => c.major_radius.span(),
-            (GeometryError::Sweep(_), _) => table,
-            (
-                GeometryError::Unresolvable {
-                    of: Unresolved::Section,
-                    ..
-                },
-                _,
-            ) => c.major_radius.span(),
+        let starts = |name: &str| msg.starts_with(name);
+        let key = match &e {
+            GeometryError::BadNormalHint if normal_hint.is_some() => Key::NormalHint,
+            GeometryError::Sweep(_) if starts("minor_radius") => Key::MinorRadius,
+            GeometryError::Sweep(_) if starts("rotation") => Key::Rotation,
+            GeometryError::Sweep(_) if starts("major_radius") => Key::MajorRadius,
+            GeometryError::Sweep(_) => Key::Whole,
+            GeometryError::Unresolvable {
+                of: Unresolved::Section,
+                ..
+            } => Key::MajorRadius,
+            _ => Key::Bezier,
+        };
+        (key, msg)
+    })
+}
+
+/// Checks one `[[cylinder]]` table and builds its cylinder.
+pub(super) fn build_cylinder(
+    c: &RawCylinder,
+    table: Range<usize>,
+) -> Result<GeneralizedCylinder, Problem> {
+    let input = FiberInput {
+        bezier: val(&c.bezier).map(|p| p.0),
+        major_radius: val(&c.major_radius),
+        minor_radius: c.minor_radius.as_ref().map(val),
+        rotation: c.rotation.as_ref().map(val),
+        caps: Caps::ends(c.caps),
+        normal_hint: c.normal_hint.as_ref().map(val),
+        section: section(&c.profile)?,
+        transform: transform(&c.transform)?,
+    };
+    build_fiber(&input).map_err(|(key, msg)| {
+        let or_table = |s: Option<Range<usize>>| s.unwrap_or(table.clone());
+        let span = match key {
+            Key::MinorRadius => or_table(c.minor_radius.as_ref().map(Spanned::span)),
+            Key::Rotation => or_table(c.rotation.as_ref().map(Spanned::span)),
+            Key::NormalHint => or_table(c.normal_hint.as_ref().map(Spanned::span)),
+            Key::MajorRadius => c.major_radius.span(),
+            Key::Whole => table.clone(),
             _ => c.bezier.span(),
         };
         (span, msg)
@@ -309,17 +373,34 @@ pub(super) fn strand_shape(
     ellipticity: &Option<Spanned<f64>>,
     twist: &Option<Spanned<Array<f64, 2>>>,
 ) -> Result<(f64, [f64; 2]), Problem> {
+    check_shape(
+        ellipticity.as_ref().map(|e| *e.get_ref()),
+        twist.as_ref().map(val),
+    )
+    .map_err(|(key, m)| {
+        let span = match key {
+            Key::Ellipticity => ellipticity.as_ref().map(Spanned::span),
+            _ => twist.as_ref().map(Spanned::span),
+        };
+        (span.unwrap_or(0..0), m)
+    })
+}
+
+/// Ellipticity in (0, 1] (default 1) and a finite twist (default 0).
+fn check_shape(
+    ellipticity: Option<f64>,
+    twist: Option<[f64; 2]>,
+) -> Result<(f64, [f64; 2]), (Key, String)> {
     let e = match ellipticity {
-        Some(e) => number(e, "ellipticity", 0.0, 1.0, true)?,
+        Some(e) => {
+            check_number(e, "ellipticity", 0.0, 1.0, true).map_err(|m| (Key::Ellipticity, m))?
+        }
         None => 1.0,
     };
-    let tw = match twist {
-        Some(t) if !val(t).iter().all(|x| x.is_finite()) => {
-            return Err((t.span(), format!("twist must be finite, got {:?}", val(t))));
-        }
-        Some(t) => val(t),
-        None => [0.0, 0.0],
-    };
+    let tw = twist.unwrap_or([0.0, 0.0]);
+    if !tw.iter().all(|x| x.is_finite()) {
+        return Err((Key::Twist, format!("twist must be finite, got {tw:?}")));
+    }
     Ok((e, tw))
 }
 
@@ -341,6 +422,71 @@ pub(super) fn strand_framing(frame: &Option<Spanned<String>>) -> Result<StrandFr
     }
 }
 
+/// The values of a `[[strand]]` table, as [`build_strand_from`] checks and builds them.
+#[derive(Clone, Debug, Default)]
+pub struct StrandInput {
+    /// Points the strand passes through (`through`), or its Bezier control points
+    /// (`3 n + 1` of them, segments sharing their ends), before `transform`.
+    pub points: Vec<[f64; 3]>,
+    /// Whether `points` are points on the strand (interpolated by a C1 spline) rather than
+    /// control points.
+    pub through: bool,
+    /// Radius at root and tip.
+    pub radius: [f64; 2],
+    /// Minor / major radius, in (0, 1] (default 1).
+    pub ellipticity: Option<f64>,
+    /// Section rotation at root and tip, radians (default 0).
+    pub twist: Option<[f64; 2]>,
+    /// How the section's frame follows the axis.
+    pub framing: StrandFraming,
+    /// The section (default: the unit circle).
+    pub section: Section,
+    /// The similarity applied to the points and radius.
+    pub transform: Similarity,
+}
+
+/// Checks a strand's values (at least 2 finite points, none repeating the one before, a
+/// positive finite radius, the shape) and builds its segments; a problem names the [`Key`].
+pub fn build_strand_from(s: StrandInput) -> Result<Vec<GeneralizedCylinder>, (Key, String)> {
+    let xf = s.transform;
+    let mut points = Vec::with_capacity(s.points.len());
+    for (i, p) in s.points.iter().enumerate() {
+        let v = DVec3::from_array(*p);
+        if !v.is_finite() {
+            return Err((Key::Points, format!("point {i} is not finite: {p:?}")));
+        }
+        if points.last() == Some(&xf.point(v)) {
+            return Err((Key::Points, format!("point {i} repeats point {}", i - 1)));
+        }
+        points.push(xf.point(v));
+    }
+    if points.len() < 2 {
+        return Err((Key::Points, "a strand needs at least 2 points".into()));
+    }
+    let r = s.radius;
+    if !r.iter().all(|x| x.is_finite() && *x > 0.0) {
+        return Err((
+            Key::Radius,
+            format!("radius must be positive and finite at root and tip, got {r:?}"),
+        ));
+    }
+    let (ellipticity, twist) = check_shape(s.ellipticity, s.twist)?;
+    let strand = Strand {
+        points: if s.through {
+            Strand::interpolating_control_points(&points)
+        } else {
+            points
+        },
+        radius: r.map(|x| x * xf.scale),
+        ellipticity,
+        twist,
+        section: s.section,
+    };
+    strand
+        .cylinders_with(s.framing)
+        .map_err(|(seg, e)| (Key::Points, format!("segment {seg}: {e}")))
+}
+
 /// Checks one `[[strand]]` table and builds its segments.
 pub(super) fn build_strand(
     s: &RawStrand,
@@ -359,44 +505,25 @@ pub(super) fn build_strand(
             return Err((table, "a strand needs `points` or `control_points`".into()));
         }
     };
-    let xf = transform(&s.transform)?;
-    let mut points = Vec::with_capacity(pts.get_ref().len());
-    for (i, p) in pts.get_ref().iter().enumerate() {
-        let v = DVec3::from_array(p.0);
-        if !v.is_finite() {
-            return Err((pts.span(), format!("point {i} is not finite: {:?}", p.0)));
-        }
-        if points.last() == Some(&xf.point(v)) {
-            return Err((pts.span(), format!("point {i} repeats point {}", i - 1)));
-        }
-        points.push(xf.point(v));
-    }
-    if points.len() < 2 {
-        return Err((pts.span(), "a strand needs at least 2 points".into()));
-    }
-    let r = val(&s.radius);
-    if !r.iter().all(|x| x.is_finite() && *x > 0.0) {
-        return Err((
-            s.radius.span(),
-            format!("radius must be positive and finite at root and tip, got {r:?}"),
-        ));
-    }
-    let (ellipticity, twist) = strand_shape(&s.ellipticity, &s.twist)?;
-    let framing = strand_framing(&s.frame)?;
-    let strand = Strand {
-        points: if through {
-            Strand::interpolating_control_points(&points)
-        } else {
-            points
-        },
-        radius: r.map(|x| x * xf.scale),
-        ellipticity,
-        twist,
+    let input = StrandInput {
+        points: pts.get_ref().iter().map(|p| p.0).collect(),
+        through,
+        radius: val(&s.radius),
+        ellipticity: s.ellipticity.as_ref().map(|e| *e.get_ref()),
+        twist: s.twist.as_ref().map(val),
+        framing: strand_framing(&s.frame)?,
         section: section(&s.profile)?,
+        transform: transform(&s.transform)?,
     };
-    strand
-        .cylinders_with(framing)
-        .map_err(|(seg, e)| (pts.span(), format!("segment {seg}: {e}")))
+    build_strand_from(input).map_err(|(key, m)| {
+        let span = match key {
+            Key::Radius => s.radius.span(),
+            Key::Ellipticity => s.ellipticity.as_ref().map_or(table, Spanned::span),
+            Key::Twist => s.twist.as_ref().map_or(table, Spanned::span),
+            _ => pts.span(),
+        };
+        (span, m)
+    })
 }
 
 /// Checks one `[[sphere]]` table and builds its sphere.
@@ -529,13 +656,21 @@ impl SceneDescription {
             framing: StrandFraming::default(),
         };
         let cylinders = hair_cylinders(path, &name, shape, Similarity::default())?;
-        let materials = Materials::new(&BTreeMap::new()).map_err(|(_, e)| e)?;
-        let fiber = materials.index(&None, FIBER_MATERIAL).map_err(|(_, e)| e)?;
-        Ok(SceneDescription {
+        Ok(Self::from_cylinders(cylinders))
+    }
+
+    /// A scene of these cylinders in the built-in `fiber` material, with no camera or lights
+    /// (the renderer frames and lights it).
+    pub fn from_cylinders(cylinders: Vec<GeneralizedCylinder>) -> Self {
+        let materials = Materials::new(&BTreeMap::new()).expect("the built-in materials are valid");
+        let fiber = materials
+            .index(&None, FIBER_MATERIAL)
+            .expect("the built-in fiber material exists");
+        SceneDescription {
             cylinder_materials: vec![fiber; cylinders.len()],
             cylinders,
             materials: materials.list,
             ..Default::default()
-        })
+        }
     }
 }

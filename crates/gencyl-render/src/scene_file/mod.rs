@@ -83,7 +83,7 @@ mod lights;
 mod materials;
 mod values;
 
-pub use geometry::Similarity;
+pub use geometry::{FiberInput, Key, Similarity, StrandInput, build_fiber, build_strand_from};
 pub use materials::{FIBER_MATERIAL, SURFACE_MATERIAL};
 
 use crate::accel::{Plane, Scene, Sphere};
@@ -112,6 +112,10 @@ pub enum SceneError {
     /// cylinder, a hair file that cannot be read.
     #[error("{0}")]
     Invalid(Box<Diagnostic>),
+    /// A `.hair` model (loaded by [`SceneDescription::load_any`]) that cannot be read or used,
+    /// or a setting that does not apply to the file: the message names the file.
+    #[error("{0}")]
+    Model(String),
 }
 
 impl SceneError {
@@ -119,7 +123,7 @@ impl SceneError {
     pub fn diagnostic(&self) -> Option<&Diagnostic> {
         match self {
             SceneError::Invalid(d) => Some(d),
-            SceneError::Read { .. } => None,
+            SceneError::Read { .. } | SceneError::Model(_) => None,
         }
     }
 }
@@ -183,6 +187,26 @@ impl SceneDescription {
             })?;
         let base = path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
         Self::parse_bytes_in(&bytes, &name, &base)
+    }
+
+    /// Loads a scene file, or a hair model in Cem Yuksel's `.hair` format (told by the
+    /// extension, in any case) as [`SceneDescription::from_hair_file`] does. `radius` (the
+    /// fiber radius) applies to hair models only: a scene file sets its radii itself.
+    pub fn load_any(path: impl AsRef<Path>, radius: Option<f64>) -> Result<Self, SceneError> {
+        let path = path.as_ref();
+        let is_hair = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("hair"));
+        if is_hair {
+            Self::from_hair_file(path, radius).map_err(SceneError::Model)
+        } else if radius.is_some() {
+            Err(SceneError::Model(format!(
+                "{}: the radius applies to .hair models; a scene file sets radii itself",
+                path.display()
+            )))
+        } else {
+            Self::load(path)
+        }
     }
 
     /// Parses scene file bytes; `name` is the file's name for messages. Bytes that are not

@@ -138,7 +138,17 @@ pub(super) fn number(
     hi: f64,
     open: bool,
 ) -> Result<f64, Problem> {
-    let x = *s.get_ref();
+    check_number(*s.get_ref(), what, lo, hi, open).map_err(|m| (s.span(), m))
+}
+
+/// [`number`] without a place in the source.
+pub(super) fn check_number(
+    x: f64,
+    what: &str,
+    lo: f64,
+    hi: f64,
+    open: bool,
+) -> Result<f64, String> {
     let ok = x.is_finite() && x <= hi && if open { x > lo } else { x >= lo };
     if ok {
         return Ok(x);
@@ -155,9 +165,9 @@ pub(super) fn number(
         (true, _) => format!("in ({lo}, {hi_text}]"),
         (false, _) => format!("in [{lo}, {hi_text}]"),
     };
-    Err((
-        s.span(),
-        format!("{what} must be {range}, got {}", gencyl::limits::short(x)),
+    Err(format!(
+        "{what} must be {range}, got {}",
+        gencyl::limits::short(x)
     ))
 }
 
