@@ -1,0 +1,670 @@
+//! `gencyl._gencyl`: the Python bindings' native half (the package `gencyl` re-exports it).
+//!
+//! They only translate: numpy arrays and keyword arguments in, numpy arrays out. Every check,
+//! every hit and every pixel comes from `gencyl-render`, through the same functions as the
+//! command line's (`raycast::cast_rays`, `scenes::job::plan`, `integrator::render`), so a
+//! Python result equals the command line's to the bit. Long calls run with the GIL released
+//! and look for Ctrl-C between blocks of rays and bands of rows.
+
+use std::ffi::CString;
+use std::path::PathBuf;
+
+use gencyl::{Aabb, GeneralizedCylinder, Ray, StrandFraming};
+use gencyl_render::accel::{Scene as Cylinders, SceneHit};
+use gencyl_render::formats::Window;
+use gencyl_render::limits;
+use gencyl_render::optics::Camera;
+use gencyl_render::raycast::{self, BLOCK, check_ray, part_number};
+use gencyl_render::scene_file::{
+    FiberInput, Key, SceneDescription, SceneError, StrandInput, build_fiber, build_strand_from,
+};
+use gencyl_render::scenes::job::{self, PlanError, RenderRequest};
+use gencyl_render::settings::{Integrator, RenderTable};
+use gencyl_render::transport::{World, integrator};
+use numpy::ndarray::{Array2, Array3};
+use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyUserWarning, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+
+/// A scene ready for ray queries and renders: cylinders under a BVH, with their materials,
+/// lights, camera and `[render]` settings.
+#[pyclass(module = "gencyl", name = "Scene", frozen)]
+struct PyScene {
+    world: World,
+    camera: Option<Camera>,
+    table: RenderTable,
+    /// For messages: the file, or how the scene was made.
+    name: String,
+}
+
+/// The Python exception for a scene that cannot be loaded: the same message the command line
+/// prints (a located diagnostic for a bad scene file).
+fn scene_error(e: SceneError) -> PyErr {
+    match &e {
+        SceneError::Invalid(d) => PyValueError::new_err(d.render()),
+        SceneError::Read { error, .. } if error.kind() == std::io::ErrorKind::NotFound => {
+            PyFileNotFoundError::new_err(e.to_string())
+        }
+        SceneError::Read { .. } => PyOSError::new_err(e.to_string()),
+        SceneError::Model(m) => PyValueError::new_err(m.clone()),
+    }
+}
+
+/// A rayon pool of `threads` (default: the global pool, all cores).
+fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    let Some(n) = threads else {
+        return Ok(None);
+    };
+    let n = limits::check_threads(n).map_err(|m| PyValueError::new_err(format!("threads: {m}")))?;
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .map(Some)
+        .map_err(|e| PyOSError::new_err(format!("cannot start the worker threads: {e}")))
+}
+
+/// Runs `f` on `pool` (or the global pool).
+fn on<T: Send>(pool: &Option<rayon::ThreadPool>, f: impl FnOnce() -> T + Send) -> T {
+    match pool {
+        Some(p) => p.install(f),
+        None => f(),
+    }
+}
+
+/// The values of a C-contiguous float64 numpy array of shape `(n, *tail)`, copied (so that
+/// no Python thread can change them while the GIL is released), and `n`.
+fn rows_of(name: &str, obj: &Bound<'_, PyAny>, tail: &[usize]) -> PyResult<(usize, Vec<f64>)> {
+    let want = {
+        let dims: Vec<String> = tail.iter().map(usize::to_string).collect();
+        format!("(N, {})", dims.join(", "))
+    };
+    let Ok(arr) = obj.cast::<PyArrayDyn<f64>>() else {
+        let dtype = obj
+            .getattr("dtype")
+            .and_then(|d| d.str().map(|s| s.to_string()));
+        return Err(PyTypeError::new_err(match dtype {
+            Ok(d) => format!(
+                "{name} must be a float64 array of shape {want}, got dtype {d} (np.asarray({name}, dtype=np.float64) converts it)"
+            ),
+            Err(_) => format!(
+                "{name} must be a numpy float64 array of shape {want}, got {}",
+                obj.get_type().name().map_or("?".into(), |n| n.to_string())
+            ),
+        }));
+    };
+    let shape = arr.shape();
+    if shape.len() != tail.len() + 1 || shape[1..] != *tail {
+        return Err(PyValueError::new_err(format!(
+            "{name} must have shape {want}, got {shape:?}"
+        )));
+    }
+    if !arr.is_c_contiguous() {
+        return Err(PyValueError::new_err(format!(
+            "{name} must be C-contiguous (np.ascontiguousarray({name}) copies it)"
+        )));
+    }
+    let n = shape[0];
+    if let Ok(values) = arr.readonly().as_slice() {
+        return Ok((n, values.to_vec()));
+    }
+    // C-contiguous but misaligned (as arrays rebuilt from a byte stream can be): an aligned
+    // copy.
+    let copy = arr.call_method0("copy")?;
+    let copy = copy.cast::<PyArrayDyn<f64>>()?.readonly();
+    let values = copy
+        .as_slice()
+        .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
+    Ok((n, values.to_vec()))
+}
+
+/// Rays from `(M, 3)` origin and direction arrays, each checked as a ray file's line is: the
+/// error names the array row.
+fn rays_of(origins: &Bound<'_, PyAny>, directions: &Bound<'_, PyAny>) -> PyResult<Vec<Ray>> {
+    let (m, o) = rows_of("origins", origins, &[3])?;
+    let (n, d) = rows_of("directions", directions, &[3])?;
+    if m != n {
+        return Err(PyValueError::new_err(format!(
+            "origins has {m} rows and directions {n}: one of each per ray"
+        )));
+    }
+    if u32::try_from(m).is_err() {
+        return Err(PyValueError::new_err(format!(
+            "{m} rays: at most {} per call (ray numbers are 32-bit)",
+            u32::MAX
+        )));
+    }
+    (0..m)
+        .map(|i| {
+            let v = [
+                o[3 * i],
+                o[3 * i + 1],
+                o[3 * i + 2],
+                d[3 * i],
+                d[3 * i + 1],
+                d[3 * i + 2],
+            ];
+            check_ray(v).map_err(|e| PyValueError::new_err(format!("ray {i}: {e}")))
+        })
+        .collect()
+}
+
+/// A value given once for every fiber or strand, or as `(start, end)`.
+#[derive(FromPyObject)]
+enum Pair {
+    One(f64),
+    Two([f64; 2]),
+}
+
+impl Pair {
+    fn get(&self) -> [f64; 2] {
+        match *self {
+            Pair::One(x) => [x, x],
+            Pair::Two(p) => p,
+        }
+    }
+}
+
+/// The argument a [`Key`] is about, for messages.
+fn argument(key: Key) -> &'static str {
+    match key {
+        Key::Bezier => "bezier",
+        Key::MajorRadius => "major_radius",
+        Key::MinorRadius => "minor_radius",
+        Key::Rotation => "rotation",
+        Key::NormalHint => "normal_hint",
+        Key::Points => "points",
+        Key::Radius => "radius",
+        Key::Ellipticity => "ellipticity",
+        Key::Twist => "twist",
+        Key::Whole => "the values together",
+    }
+}
+
+/// Warns in Python (a `UserWarning`).
+fn warn(py: Python<'_>, message: &str) -> PyResult<()> {
+    let text = CString::new(message.replace('\0', " ")).expect("no NUL left");
+    PyErr::warn(py, &py.get_type::<PyUserWarning>(), &text, 1)
+}
+
+/// The integrator named `name`.
+fn parse_integrator(name: Option<&str>) -> PyResult<Option<Integrator>> {
+    name.map(str::parse::<Integrator>)
+        .transpose()
+        .map_err(PyValueError::new_err)
+}
+
+/// `v`, checked to be in `1..=hi`.
+fn checked<T: Copy + PartialOrd + From<u8> + std::fmt::Display>(
+    name: &str,
+    v: Option<T>,
+    hi: T,
+) -> PyResult<Option<T>> {
+    match v {
+        Some(x) if !(x >= T::from(1) && x <= hi) => Err(PyValueError::new_err(format!(
+            "{name} must be in 1..={hi}, got {x}"
+        ))),
+        _ => Ok(v),
+    }
+}
+
+/// The film channels of an integrator.
+fn channel_names(i: Integrator) -> Vec<String> {
+    i.channels().iter().map(|c| c.to_string()).collect()
+}
+
+impl PyScene {
+    /// [`job::plan`] for this scene, its errors worded for Python.
+    fn plan(&self, request: &RenderRequest) -> PyResult<job::RenderJob> {
+        let name = &self.name;
+        job::plan(&self.world, self.camera, &self.table, request).map_err(|e| {
+            PyValueError::new_err(match &e {
+                PlanError::Height { width, .. } => format!("width={width}: {}", e.message()),
+                PlanError::Crop(m) => format!("crop: {m}"),
+                PlanError::Pixels { .. } => format!(
+                    "{name}: {} (the image must fit in memory; max_pixels= raises the limit)",
+                    e.message()
+                ),
+                PlanError::Memory(m) => format!("{name}: {m}"),
+            })
+        })
+    }
+
+    fn from_description(desc: SceneDescription, name: String) -> PyResult<Self> {
+        if desc.cylinders.len() > Cylinders::MAX_CYLINDERS {
+            return Err(PyValueError::new_err(format!(
+                "{name}: {} cylinders, more than the {} a scene holds",
+                desc.cylinders.len(),
+                Cylinders::MAX_CYLINDERS
+            )));
+        }
+        let (camera, table) = (desc.camera, desc.render);
+        let mut world = World::new(desc);
+        job::light_if_unlit(&mut world);
+        Ok(PyScene {
+            world,
+            camera,
+            table,
+            name,
+        })
+    }
+
+    fn from_cylinders_built(
+        py: Python<'_>,
+        built: Vec<Result<GeneralizedCylinder, (Key, String)>>,
+        what: &str,
+    ) -> PyResult<Self> {
+        let mut cylinders = Vec::with_capacity(built.len());
+        for (i, b) in built.into_iter().enumerate() {
+            cylinders.push(b.map_err(|(key, m)| {
+                PyValueError::new_err(format!("{what} {i}: {m} ({})", argument(key)))
+            })?);
+        }
+        let desc = SceneDescription::from_cylinders(cylinders);
+        py.detach(|| PyScene::from_description(desc, format!("the {what}s")))
+    }
+}
+
+#[pymethods]
+impl PyScene {
+    /// Loads a TOML scene file or a `.hair` model (its strands in the built-in fiber material;
+    /// `radius`, for `.hair` only, overrides the file's thickness). Raises `FileNotFoundError`,
+    /// `OSError`, or `ValueError` with the located message the command line prints.
+    #[staticmethod]
+    #[pyo3(signature = (path, radius = None))]
+    fn load(py: Python<'_>, path: PathBuf, radius: Option<f64>) -> PyResult<Self> {
+        let name = path.display().to_string();
+        py.detach(|| {
+            let desc = SceneDescription::load_any(&path, radius).map_err(scene_error)?;
+            PyScene::from_description(desc, name)
+        })
+    }
+
+    /// Cylinders from arrays, one row each, as `[[cylinder]]` tables give them: `bezier`
+    /// (N, 4, 3) control points, `major_radius` (N, 2) at u = 0 and 1, `minor_radius` (N, 2)
+    /// (default: round), `rotation` (N, 2) radians, `caps`, `normal_hint` (N, 3).
+    #[staticmethod]
+    #[pyo3(signature = (bezier, major_radius, minor_radius = None, rotation = None, caps = true, normal_hint = None))]
+    fn from_cylinders(
+        py: Python<'_>,
+        bezier: &Bound<'_, PyAny>,
+        major_radius: &Bound<'_, PyAny>,
+        minor_radius: Option<&Bound<'_, PyAny>>,
+        rotation: Option<&Bound<'_, PyAny>>,
+        caps: bool,
+        normal_hint: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let (n, bez) = rows_of("bezier", bezier, &[4, 3])?;
+        let count = |name: &str, m: usize| -> PyResult<()> {
+            if m == n {
+                Ok(())
+            } else {
+                Err(PyValueError::new_err(format!(
+                    "{name} has {m} rows and bezier {n}: one per cylinder"
+                )))
+            }
+        };
+        let optional = |name: &str, a: Option<&Bound<'_, PyAny>>, k: usize| {
+            a.map(|a| {
+                let (m, v) = rows_of(name, a, &[k])?;
+                count(name, m).map(|()| v)
+            })
+            .transpose()
+        };
+        let (m, major) = rows_of("major_radius", major_radius, &[2])?;
+        count("major_radius", m)?;
+        let minor = optional("minor_radius", minor_radius, 2)?;
+        let rot = optional("rotation", rotation, 2)?;
+        let hint = optional("normal_hint", normal_hint, 3)?;
+        let pair = |v: &[f64], i: usize| [v[2 * i], v[2 * i + 1]];
+        let built = py.detach(|| {
+            (0..n)
+                .into_par_iter()
+                .map(|i| {
+                    let b = &bez[12 * i..12 * i + 12];
+                    build_fiber(&FiberInput {
+                        bezier: [0, 1, 2, 3].map(|k| [b[3 * k], b[3 * k + 1], b[3 * k + 2]]),
+                        major_radius: pair(&major, i),
+                        minor_radius: minor.as_ref().map(|v| pair(v, i)),
+                        rotation: rot.as_ref().map(|v| pair(v, i)),
+                        caps: [caps, caps],
+                        normal_hint: hint
+                            .as_ref()
+                            .map(|v| [v[3 * i], v[3 * i + 1], v[3 * i + 2]]),
+                        ..Default::default()
+                    })
+                })
+                .collect()
+        });
+        PyScene::from_cylinders_built(py, built, "cylinder")
+    }
+
+    /// Strands through points, as `[[strand]]` tables give them: `points` a list of (K, 3)
+    /// arrays (K >= 2), `radius` at root and tip (one number or a pair), `ellipticity` (minor
+    /// / major, in (0, 1]), `twist` (radians at root and tip), `frame` (`"minimal"` or
+    /// `"frenet"`), `control_points` (the arrays are Bezier control points, 3 n + 1 each).
+    #[staticmethod]
+    #[pyo3(signature = (points, radius, ellipticity = None, twist = None, frame = "minimal", control_points = false))]
+    fn from_strands(
+        py: Python<'_>,
+        points: Vec<Bound<'_, PyAny>>,
+        radius: Pair,
+        ellipticity: Option<f64>,
+        twist: Option<Pair>,
+        frame: &str,
+        control_points: bool,
+    ) -> PyResult<Self> {
+        let framing = match frame {
+            "minimal" | "rotation-minimizing" | "rmf" => StrandFraming::RotationMinimizing,
+            "frenet" => StrandFraming::Frenet,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "frame must be \"minimal\" or \"frenet\", got {other:?}"
+                )));
+            }
+        };
+        let mut inputs = Vec::with_capacity(points.len());
+        for (i, p) in points.iter().enumerate() {
+            let (k, v) = rows_of(&format!("points[{i}]"), p, &[3])?;
+            inputs.push(StrandInput {
+                points: (0..k)
+                    .map(|j| [v[3 * j], v[3 * j + 1], v[3 * j + 2]])
+                    .collect(),
+                through: !control_points,
+                radius: radius.get(),
+                ellipticity,
+                twist: twist.as_ref().map(Pair::get),
+                framing,
+                ..Default::default()
+            });
+        }
+        let built: Vec<Result<Vec<GeneralizedCylinder>, (Key, String)>> =
+            py.detach(|| inputs.into_par_iter().map(build_strand_from).collect());
+        let mut cylinders = Vec::new();
+        for (i, b) in built.into_iter().enumerate() {
+            cylinders.extend(b.map_err(|(key, m)| {
+                PyValueError::new_err(format!("strand {i}: {m} ({})", argument(key)))
+            })?);
+        }
+        let desc = SceneDescription::from_cylinders(cylinders);
+        py.detach(|| PyScene::from_description(desc, "the strands".into()))
+    }
+
+    /// The number of cylinders (strand segments count one each); hits' `object` numbers them.
+    fn __len__(&self) -> usize {
+        self.world.scene.cylinders().len()
+    }
+
+    /// The bounds of the cylinders and spheres as a (2, 3) array `[min, max]`, or `None` for
+    /// a scene without them.
+    #[getter]
+    fn bounds<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
+        let Aabb { min, max } = self.world.bounds();
+        (min.is_finite() && max.is_finite()).then(|| {
+            Array2::from_shape_vec((2, 3), vec![min.x, min.y, min.z, max.x, max.y, max.z])
+                .expect("six values")
+                .into_pyarray(py)
+                .into_any()
+        })
+    }
+
+    /// The frame a render of this scene would have, `(width, height, channels)`: the
+    /// scene's camera (else one framed at 640x480) at `width`, and the integrator's channels
+    /// (`integrator`, else the scene's `[render]` one, else `path`'s).
+    #[pyo3(signature = (width = None, integrator = None))]
+    fn frame(
+        &self,
+        width: Option<u32>,
+        integrator: Option<&str>,
+    ) -> PyResult<(u32, u32, Vec<String>)> {
+        let request = RenderRequest {
+            overrides: RenderTable {
+                integrator: parse_integrator(integrator)?,
+                ..Default::default()
+            },
+            width: checked("width", width, 65536)?,
+            ..Default::default()
+        };
+        let plan = self.plan(&request)?;
+        Ok((
+            plan.camera.width,
+            plan.camera.height,
+            channel_names(plan.settings.integrator),
+        ))
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<gencyl.Scene {}: {} cylinders>",
+            self.name,
+            self.world.scene.cylinders().len()
+        )
+    }
+
+    /// Intersects rays `origins + t directions` ((M, 3) float64 each) with the cylinders.
+    /// Returns a dict of arrays, one row per hit, rows in ray order (with `all`, every hit with
+    /// t > tmin sorted by t, else the nearest): `ray` (int64), `t`, `u`, `v` (float64),
+    /// `normal` (H, 3), `object` (int64), `part` (int8: 0 side, 1 cap at u = 0, 2 cap at u = 1,
+    /// 3 seam). The same rows as `gencyl raycast` on the same scene and rays, to the bit.
+    #[pyo3(signature = (origins, directions, tmin = 0.0, all = false, threads = None))]
+    fn raycast<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: f64,
+        all: bool,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if tmin.is_nan() {
+            return Err(PyValueError::new_err("tmin must be a number, not NaN"));
+        }
+        let rays = rays_of(origins, directions)?;
+        let pool = pool(threads)?;
+        let scene = &self.world.scene;
+        let mut rows: Vec<(u32, SceneHit)> = Vec::new();
+        for (b, block) in rays.chunks(BLOCK).enumerate() {
+            let got = py.detach(|| {
+                on(&pool, || {
+                    raycast::cast_rays(scene, block, b * BLOCK, tmin, all)
+                })
+            });
+            rows.extend(got);
+            py.check_signals()?;
+        }
+        let h = rows.len();
+        let column =
+            |f: &dyn Fn(&SceneHit) -> f64| -> Vec<f64> { rows.iter().map(|(_, x)| f(x)).collect() };
+        let normal: Vec<f64> = rows
+            .iter()
+            .flat_map(|(_, x)| x.hit.normal.to_array())
+            .collect();
+        let out = PyDict::new(py);
+        out.set_item(
+            "ray",
+            rows.iter()
+                .map(|r| r.0 as i64)
+                .collect::<Vec<_>>()
+                .into_pyarray(py),
+        )?;
+        out.set_item("t", column(&|x| x.hit.t).into_pyarray(py))?;
+        out.set_item("u", column(&|x| x.hit.u).into_pyarray(py))?;
+        out.set_item("v", column(&|x| x.hit.v).into_pyarray(py))?;
+        out.set_item(
+            "normal",
+            Array2::from_shape_vec((h, 3), normal)
+                .expect("3 per hit")
+                .into_pyarray(py),
+        )?;
+        out.set_item(
+            "object",
+            rows.iter()
+                .map(|r| r.1.object as i64)
+                .collect::<Vec<_>>()
+                .into_pyarray(py),
+        )?;
+        out.set_item(
+            "part",
+            rows.iter()
+                .map(|r| part_number(r.1.hit.part) as i8)
+                .collect::<Vec<_>>()
+                .into_pyarray(py),
+        )?;
+        Ok(out)
+    }
+
+    /// X-ray path lengths of rays through the solids ((M, 3) float64 origins and directions):
+    /// a dict of (M,) float64 arrays, `length` (the total length inside, in units of |d|:
+    /// world units for unit directions) and `optical_depth` (the length weighted by each
+    /// material's `mu`; the transmittance is `exp(-optical_depth)`).
+    #[pyo3(signature = (origins, directions, threads = None))]
+    fn xray<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let rays = rays_of(origins, directions)?;
+        let pool = pool(threads)?;
+        let (mut length, mut depth) = (
+            Vec::with_capacity(rays.len()),
+            Vec::with_capacity(rays.len()),
+        );
+        for block in rays.chunks(BLOCK) {
+            let got: Vec<(f64, f64)> = py.detach(|| {
+                on(&pool, || {
+                    block
+                        .par_iter()
+                        .map_init(integrator::Buffers::default, |buf, ray| {
+                            integrator::xray_length(&self.world, ray, buf)
+                        })
+                        .collect()
+                })
+            });
+            for (l, d) in got {
+                length.push(l);
+                depth.push(d);
+            }
+            py.check_signals()?;
+        }
+        let out = PyDict::new(py);
+        out.set_item("length", length.into_pyarray(py))?;
+        out.set_item("optical_depth", depth.into_pyarray(py))?;
+        Ok(out)
+    }
+}
+
+/// Renders a scene (a `Scene`, or the path of a scene file or `.hair` model) to a float32
+/// array (H, W, C) and its channel names: as `gencyl render` with the same settings renders
+/// it (the same pixels, bit for bit), before the image is written. Settings left `None` come
+/// from the scene's `[render]` table, else the defaults. `crop = (x0, y0, x1, y1)` renders
+/// that window of the frame (x1, y1 excluded).
+#[pyfunction]
+#[pyo3(signature = (scene, integrator = None, spp = None, width = None, max_depth = None, crop = None, seed = None, threads = None, max_pixels = None, radius = None))]
+#[allow(clippy::too_many_arguments)]
+fn render<'py>(
+    py: Python<'py>,
+    scene: &Bound<'py, PyAny>,
+    integrator: Option<&str>,
+    spp: Option<u32>,
+    width: Option<u32>,
+    max_depth: Option<u32>,
+    crop: Option<(u32, u32, u32, u32)>,
+    seed: Option<u64>,
+    threads: Option<usize>,
+    max_pixels: Option<u64>,
+    radius: Option<f64>,
+) -> PyResult<(Bound<'py, PyAny>, Vec<String>)> {
+    let loaded;
+    let scene: &PyScene = match scene.cast::<PyScene>() {
+        Ok(s) => {
+            if radius.is_some() {
+                return Err(PyValueError::new_err(
+                    "radius applies when loading a .hair model by path, not to a Scene",
+                ));
+            }
+            loaded = s.clone().unbind();
+            loaded.get()
+        }
+        Err(_) => {
+            let path: PathBuf = scene.extract().map_err(|_| {
+                PyTypeError::new_err("scene must be a gencyl.Scene or the path of a scene file")
+            })?;
+            let s = PyScene::load(py, path, radius)?;
+            loaded = Py::new(py, s)?;
+            loaded.get()
+        }
+    };
+    let request = RenderRequest {
+        overrides: RenderTable {
+            integrator: parse_integrator(integrator)?,
+            spp: checked("spp", spp, 1_000_000)?,
+            max_depth: checked("max_depth", max_depth, 1000)?,
+            seed,
+        },
+        width: checked("width", width, 65536)?,
+        crop: crop.map(|(x0, y0, x1, y1)| Window::new(x0, y0, x1, y1)),
+        max_pixels: checked("max_pixels", max_pixels, u64::MAX)?.unwrap_or(limits::MAX_PIXELS),
+    };
+    let name = &scene.name;
+    let plan = scene.plan(&request)?;
+    for w in job::warnings(&scene.world, &plan.camera, name) {
+        warn(py, &w)?;
+    }
+    let pool = pool(threads)?;
+    let window = plan.window;
+    let channels = plan.settings.integrator.channels();
+    // Bands of rows between checks for Ctrl-C; each band's rows run in parallel.
+    let band =
+        (16 * pool
+            .as_ref()
+            .map_or_else(rayon::current_num_threads, |p| p.current_num_threads())) as u32;
+    let mut data =
+        Vec::with_capacity(window.width() as usize * window.height() as usize * channels.len());
+    let mut dropped = 0;
+    let mut y = window.y0;
+    while y < window.y1 {
+        let rows = Window::new(window.x0, y, window.x1, (y + band).min(window.y1));
+        let done = py.detach(|| {
+            on(&pool, || {
+                integrator::render(&scene.world, &plan.camera, &plan.settings, rows, &|_| {})
+            })
+        });
+        data.extend_from_slice(&done.film.data);
+        dropped += done.non_finite_samples;
+        py.check_signals()?;
+        y = rows.y1;
+    }
+    if dropped > 0 {
+        warn(
+            py,
+            &format!(
+                "{dropped} samples were NaN or infinite and were left out (their pixels are the mean of the finite samples)"
+            ),
+        )?;
+    }
+    let image = Array3::from_shape_vec(
+        (
+            window.height() as usize,
+            window.width() as usize,
+            channels.len(),
+        ),
+        data,
+    )
+    .expect("a value per channel of every pixel");
+    Ok((
+        image.into_pyarray(py).into_any(),
+        channel_names(plan.settings.integrator),
+    ))
+}
+
+/// The native module.
+#[pymodule]
+fn _gencyl(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyScene>()?;
+    m.add_function(wrap_pyfunction!(render, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
