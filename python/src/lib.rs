@@ -73,9 +73,14 @@ fn on<T: Send>(pool: &Option<rayon::ThreadPool>, f: impl FnOnce() -> T + Send) -
     }
 }
 
-/// The values of a C-contiguous float64 numpy array of shape `(n, *tail)`, copied (so that
-/// no Python thread can change them while the GIL is released), and `n`.
-fn rows_of(name: &str, obj: &Bound<'_, PyAny>, tail: &[usize]) -> PyResult<(usize, Vec<f64>)> {
+/// `f` of the values of a C-contiguous float64 numpy array of shape `(n, *tail)`, and `n`.
+/// (`f` runs with the GIL held, so no Python thread changes the values meanwhile.)
+fn read_rows<R>(
+    name: &str,
+    obj: &Bound<'_, PyAny>,
+    tail: &[usize],
+    f: impl FnOnce(&[f64]) -> PyResult<R>,
+) -> PyResult<(usize, R)> {
     let want = {
         let dims: Vec<String> = tail.iter().map(usize::to_string).collect();
         format!("(N, {})", dims.join(", "))
@@ -107,7 +112,7 @@ fn rows_of(name: &str, obj: &Bound<'_, PyAny>, tail: &[usize]) -> PyResult<(usiz
     }
     let n = shape[0];
     if let Ok(values) = arr.readonly().as_slice() {
-        return Ok((n, values.to_vec()));
+        return Ok((n, f(values)?));
     }
     // C-contiguous but misaligned (as arrays rebuilt from a byte stream can be): an aligned
     // copy.
@@ -116,12 +121,22 @@ fn rows_of(name: &str, obj: &Bound<'_, PyAny>, tail: &[usize]) -> PyResult<(usiz
     let values = copy
         .as_slice()
         .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
-    Ok((n, values.to_vec()))
+    Ok((n, f(values)?))
 }
 
-/// Rays from `(M, 3)` origin and direction arrays, each checked as a ray file's line is: the
-/// error names the array row.
-fn rays_of(origins: &Bound<'_, PyAny>, directions: &Bound<'_, PyAny>) -> PyResult<Vec<Ray>> {
+/// The values of a float64 array of shape `(n, *tail)` ([`read_rows`]), copied, and `n`.
+fn rows_of(name: &str, obj: &Bound<'_, PyAny>, tail: &[usize]) -> PyResult<(usize, Vec<f64>)> {
+    read_rows(name, obj, tail, |v| Ok(v.to_vec()))
+}
+
+/// Rays from `(M, 3)` origin and direction arrays, each checked as a ray file's line is (in
+/// parallel on `pool`, with the GIL released): the error names the first bad row.
+fn rays_of(
+    py: Python<'_>,
+    origins: &Bound<'_, PyAny>,
+    directions: &Bound<'_, PyAny>,
+    pool: &Option<rayon::ThreadPool>,
+) -> PyResult<Vec<Ray>> {
     let (m, o) = rows_of("origins", origins, &[3])?;
     let (n, d) = rows_of("directions", directions, &[3])?;
     if m != n {
@@ -135,19 +150,25 @@ fn rays_of(origins: &Bound<'_, PyAny>, directions: &Bound<'_, PyAny>) -> PyResul
             u32::MAX
         )));
     }
-    (0..m)
-        .map(|i| {
-            let v = [
-                o[3 * i],
-                o[3 * i + 1],
-                o[3 * i + 2],
-                d[3 * i],
-                d[3 * i + 1],
-                d[3 * i + 2],
-            ];
-            check_ray(v).map_err(|e| PyValueError::new_err(format!("ray {i}: {e}")))
+    let ray = |i: usize| {
+        let (o, d) = (&o[3 * i..3 * i + 3], &d[3 * i..3 * i + 3]);
+        check_ray([o[0], o[1], o[2], d[0], d[1], d[2]])
+    };
+    py.detach(|| {
+        on(pool, || {
+            let mut rays = Vec::with_capacity(m);
+            (0..m)
+                .into_par_iter()
+                .map(|i| ray(i).unwrap_or(Ray::new(glam::DVec3::NAN, glam::DVec3::NAN)))
+                .collect_into_vec(&mut rays);
+            // A bad ray was made NaN above; name the first.
+            match rays.par_iter().position_first(|r| r.dir.is_nan()) {
+                Some(i) => Err((i, ray(i).expect_err("a bad ray"))),
+                None => Ok(rays),
+            }
+            .map_err(|(i, e): (usize, String)| PyValueError::new_err(format!("ray {i}: {e}")))
         })
-        .collect()
+    })
 }
 
 /// A value given once for every fiber or strand, or as `(start, end)`.
@@ -460,8 +481,8 @@ impl PyScene {
         if tmin.is_nan() {
             return Err(PyValueError::new_err("tmin must be a number, not NaN"));
         }
-        let rays = rays_of(origins, directions)?;
         let pool = pool(threads)?;
+        let rays = rays_of(py, origins, directions, &pool)?;
         let scene = &self.world.scene;
         let mut rows: Vec<(u32, SceneHit)> = Vec::new();
         for (b, block) in rays.chunks(BLOCK).enumerate() {
@@ -526,8 +547,8 @@ impl PyScene {
         directions: &Bound<'py, PyAny>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let rays = rays_of(origins, directions)?;
         let pool = pool(threads)?;
+        let rays = rays_of(py, origins, directions, &pool)?;
         let (mut length, mut depth) = (
             Vec::with_capacity(rays.len()),
             Vec::with_capacity(rays.len()),

@@ -1,0 +1,77 @@
+"""Type stubs of the native module (``gencyl.Scene`` and ``gencyl.render`` come from here)."""
+
+from os import PathLike
+from typing import Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+_Pair = Union[float, Tuple[float, float], Sequence[float]]
+_Path = Union[str, "PathLike[str]"]
+
+class Scene:
+    """A scene ready for ray queries and renders: cylinders under a BVH, with their
+    materials, lights, camera and ``[render]`` settings."""
+
+    @staticmethod
+    def load(path: _Path, radius: Optional[float] = None) -> "Scene":
+        """Load a TOML scene file or a ``.hair`` model (``radius``: ``.hair`` only)."""
+    @staticmethod
+    def from_cylinders(
+        bezier: npt.NDArray[np.float64],
+        major_radius: npt.NDArray[np.float64],
+        minor_radius: Optional[npt.NDArray[np.float64]] = None,
+        rotation: Optional[npt.NDArray[np.float64]] = None,
+        caps: bool = True,
+        normal_hint: Optional[npt.NDArray[np.float64]] = None,
+    ) -> "Scene":
+        """Cylinders from (N, 4, 3) control points and (N, 2) radii and rotations."""
+    @staticmethod
+    def from_strands(
+        points: Sequence[npt.NDArray[np.float64]],
+        radius: _Pair,
+        ellipticity: Optional[float] = None,
+        twist: Optional[_Pair] = None,
+        frame: str = "minimal",
+        control_points: bool = False,
+    ) -> "Scene":
+        """Strands through (K, 3) point arrays, as ``[[strand]]`` tables."""
+    def __len__(self) -> int: ...
+    @property
+    def bounds(self) -> Optional[npt.NDArray[np.float64]]:
+        """``[min, max]`` as a (2, 3) array, or None without geometry."""
+    def frame(
+        self, width: Optional[int] = None, integrator: Optional[str] = None
+    ) -> Tuple[int, int, List[str]]:
+        """``(width, height, channels)`` of a render with these settings."""
+    def raycast(
+        self,
+        origins: npt.NDArray[np.float64],
+        directions: npt.NDArray[np.float64],
+        tmin: float = 0.0,
+        all: bool = False,
+        threads: Optional[int] = None,
+    ) -> Dict[str, np.ndarray]:
+        """Hits as arrays: ray, t, u, v, normal (H, 3), object, part."""
+    def xray(
+        self,
+        origins: npt.NDArray[np.float64],
+        directions: npt.NDArray[np.float64],
+        threads: Optional[int] = None,
+    ) -> Dict[str, npt.NDArray[np.float64]]:
+        """Path lengths: length and optical_depth, (M,) each."""
+
+def render(
+    scene: Union[Scene, _Path],
+    integrator: Optional[str] = None,
+    spp: Optional[int] = None,
+    width: Optional[int] = None,
+    max_depth: Optional[int] = None,
+    crop: Optional[Tuple[int, int, int, int]] = None,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+    max_pixels: Optional[int] = None,
+    radius: Optional[float] = None,
+) -> Tuple[npt.NDArray[np.float32], List[str]]: ...
