@@ -5,8 +5,9 @@
 # packages come from PyPI.
 set -euo pipefail
 cd "$(dirname "$0")"
+# Also builds target/release/gencyl (for the CLI's integration tests), which the Python tests
+# compare against.
 cargo test --release --workspace
-cargo build --release -p gencyl-cli
 
 target="${CARGO_TARGET_DIR:-$PWD/target}"
 venv="$target/python-venv"

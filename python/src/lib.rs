@@ -23,7 +23,9 @@ use gencyl_render::settings::{Integrator, RenderTable};
 use gencyl_render::transport::{World, integrator};
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyUserWarning, PyValueError};
+use pyo3::exceptions::{
+    PyFileNotFoundError, PyMemoryError, PyOSError, PyTypeError, PyUserWarning, PyValueError,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
@@ -203,6 +205,21 @@ fn argument(key: Key) -> &'static str {
     }
 }
 
+/// Checks that `n` cylinders fit in a scene and in memory (as a scene file's are checked).
+fn fits(argument: &str, n: u64, what: &str) -> PyResult<()> {
+    if n > Cylinders::MAX_CYLINDERS as u64 {
+        return Err(PyValueError::new_err(format!(
+            "{argument}: {n} {what}, more than the {} a scene holds",
+            Cylinders::MAX_CYLINDERS
+        )));
+    }
+    limits::check_memory(
+        n.saturating_mul(limits::PEAK_BYTES_PER_SEGMENT),
+        &format!("{argument}: {n} {what}"),
+    )
+    .map_err(PyMemoryError::new_err)
+}
+
 /// Warns in Python (a `UserWarning`).
 fn warn(py: Python<'_>, message: &str) -> PyResult<()> {
     let text = CString::new(message.replace('\0', " ")).expect("no NUL left");
@@ -316,7 +333,10 @@ impl PyScene {
         caps: bool,
         normal_hint: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let (n, bez) = rows_of("bezier", bezier, &[4, 3])?;
+        let (n, bez) = read_rows("bezier", bezier, &[4, 3], |v| {
+            fits("bezier", v.len() as u64 / 12, "cylinders")?;
+            Ok(v.to_vec())
+        })?;
         let count = |name: &str, m: usize| -> PyResult<()> {
             if m == n {
                 Ok(())
@@ -385,6 +405,12 @@ impl PyScene {
                 )));
             }
         };
+        let mut segments = 0u64;
+        for p in &points {
+            let k = p.len().unwrap_or(0) as u64;
+            segments += k.saturating_sub(1);
+        }
+        fits("points", segments, "strand segments")?;
         let mut inputs = Vec::with_capacity(points.len());
         for (i, p) in points.iter().enumerate() {
             let (k, v) = rows_of(&format!("points[{i}]"), p, &[3])?;
