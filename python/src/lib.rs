@@ -14,7 +14,7 @@ use gencyl_render::accel::{Scene as Cylinders, SceneHit};
 use gencyl_render::formats::Window;
 use gencyl_render::limits;
 use gencyl_render::optics::Camera;
-use gencyl_render::raycast::{self, BLOCK, check_ray, part_number};
+use gencyl_render::raycast::{self, BLOCK, part_number, rays_from_arrays};
 use gencyl_render::scene_file::{
     FiberInput, Key, SceneDescription, SceneError, StrandInput, build_fiber, build_strand_from,
 };
@@ -132,45 +132,35 @@ fn rows_of(name: &str, obj: &Bound<'_, PyAny>, tail: &[usize]) -> PyResult<(usiz
 }
 
 /// Rays from `(M, 3)` origin and direction arrays, each checked as a ray file's line is (in
-/// parallel on `pool`, with the GIL released): the error names the first bad row.
+/// parallel on `pool`): the error names the first bad row. The arrays are read in place, with
+/// the GIL held (a few nanoseconds a ray), so no Python thread changes them meanwhile.
 fn rays_of(
-    py: Python<'_>,
     origins: &Bound<'_, PyAny>,
     directions: &Bound<'_, PyAny>,
     pool: &Option<rayon::ThreadPool>,
 ) -> PyResult<Vec<Ray>> {
-    let (m, o) = rows_of("origins", origins, &[3])?;
-    let (n, d) = rows_of("directions", directions, &[3])?;
-    if m != n {
-        return Err(PyValueError::new_err(format!(
-            "origins has {m} rows and directions {n}: one of each per ray"
-        )));
-    }
-    if u32::try_from(m).is_err() {
-        return Err(PyValueError::new_err(format!(
-            "{m} rays: at most {} per call (ray numbers are 32-bit)",
-            u32::MAX
-        )));
-    }
-    let ray = |i: usize| {
-        let (o, d) = (&o[3 * i..3 * i + 3], &d[3 * i..3 * i + 3]);
-        check_ray([o[0], o[1], o[2], d[0], d[1], d[2]])
-    };
-    py.detach(|| {
-        on(pool, || {
-            let mut rays = Vec::with_capacity(m);
-            (0..m)
-                .into_par_iter()
-                .map(|i| ray(i).unwrap_or(Ray::new(glam::DVec3::NAN, glam::DVec3::NAN)))
-                .collect_into_vec(&mut rays);
-            // A bad ray was made NaN above; name the first.
-            match rays.par_iter().position_first(|r| r.dir.is_nan()) {
-                Some(i) => Err((i, ray(i).expect_err("a bad ray"))),
-                None => Ok(rays),
+    let (m, rays) = read_rows("origins", origins, &[3], |o| {
+        let m = o.len() / 3;
+        if u32::try_from(m).is_err() {
+            return Err(PyValueError::new_err(format!(
+                "{m} rays: at most {} per call (ray numbers are 32-bit)",
+                u32::MAX
+            )));
+        }
+        let (_, rays) = read_rows("directions", directions, &[3], |d| {
+            if d.len() != o.len() {
+                return Err(PyValueError::new_err(format!(
+                    "origins has {m} rows and directions {}: one of each per ray",
+                    d.len() / 3
+                )));
             }
-            .map_err(|(i, e): (usize, String)| PyValueError::new_err(format!("ray {i}: {e}")))
-        })
-    })
+            on(pool, || rays_from_arrays(o, d))
+                .map_err(|(i, e)| PyValueError::new_err(format!("ray {i}: {e}")))
+        })?;
+        Ok(rays)
+    })?;
+    debug_assert_eq!(m, rays.len());
+    Ok(rays)
 }
 
 /// A value given once for every fiber or strand, or as `(start, end)`.
@@ -508,7 +498,7 @@ impl PyScene {
             return Err(PyValueError::new_err("tmin must be a number, not NaN"));
         }
         let pool = pool(threads)?;
-        let rays = rays_of(py, origins, directions, &pool)?;
+        let rays = rays_of(origins, directions, &pool)?;
         let scene = &self.world.scene;
         let mut rows: Vec<(u32, SceneHit)> = Vec::new();
         for (b, block) in rays.chunks(BLOCK).enumerate() {
@@ -574,7 +564,7 @@ impl PyScene {
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let pool = pool(threads)?;
-        let rays = rays_of(py, origins, directions, &pool)?;
+        let rays = rays_of(origins, directions, &pool)?;
         let (mut length, mut depth) = (
             Vec::with_capacity(rays.len()),
             Vec::with_capacity(rays.len()),

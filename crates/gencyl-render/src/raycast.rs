@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use crate::accel::{Scene, SceneHit, Scratch};
 pub use crate::formats::rays::{
-    HEADER, Num, RayFileError, check_ray, format_row, parse_rays, part_number, read_rays,
+    HEADER, Num, RayFileError, check_ray, format_row, parse_rays, part_number, rays_from_arrays,
+    read_rays,
 };
 
 /// What [`raycast`] reports.

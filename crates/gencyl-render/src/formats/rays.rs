@@ -182,6 +182,48 @@ pub fn check_ray(v: [f64; 6]) -> Result<Ray, String> {
     Ok(ray)
 }
 
+/// Rays from flat arrays of origins `[ox, oy, oz, ...]` and directions `[dx, dy, dz, ...]`
+/// (three values a ray, as many of each), each checked as [`check_ray`] checks a line; the
+/// error gives the first bad ray's index and what is wrong with it. Runs in parallel on the
+/// current rayon pool.
+///
+/// # Panics
+///
+/// If the arrays differ in length or their length is not a multiple of 3.
+pub fn rays_from_arrays(origins: &[f64], directions: &[f64]) -> Result<Vec<Ray>, (usize, String)> {
+    use rayon::prelude::*;
+    assert!(
+        origins.len() == directions.len() && origins.len() % 3 == 0,
+        "three values a ray in each array"
+    );
+    // What check_ray accepts, tested a block at a time without branches (so vectorised).
+    const BLOCK: usize = 3 * 4096;
+    let good = origins
+        .par_chunks(BLOCK)
+        .zip(directions.par_chunks(BLOCK))
+        .all(|(o, d)| {
+            let finite = |v: &[f64]| v.iter().fold(true, |ok, x| ok & x.is_finite());
+            let moving = d.chunks_exact(3).fold(true, |ok, v| {
+                ok & (v[0] != 0.0 || v[1] != 0.0 || v[2] != 0.0)
+            });
+            finite(o) & finite(d) & moving
+        });
+    let ray = |o: &[f64], d: &[f64]| [o[0], o[1], o[2], d[0], d[1], d[2]];
+    if good {
+        return Ok(origins
+            .par_chunks_exact(3)
+            .zip(directions.par_chunks_exact(3))
+            .map(|(o, d)| Ray::new(DVec3::from_slice(o), DVec3::from_slice(d)))
+            .collect());
+    }
+    let bad = origins
+        .chunks_exact(3)
+        .zip(directions.chunks_exact(3))
+        .enumerate()
+        .find_map(|(i, (o, d))| check_ray(ray(o, d)).err().map(|e| (i, e)));
+    Err(bad.expect("a ray that check_ray refuses"))
+}
+
 /// The CSV's number of a hit's part: 0 side, 1 cap at `u = 0`, 2 cap at `u = 1`, 3 seam.
 pub fn part_number(part: Part) -> u8 {
     match part {
@@ -246,6 +288,33 @@ mod tests {
         parse_rays(text.as_bytes(), "rays.csv")
             .unwrap_err()
             .to_string()
+    }
+
+    /// The array form accepts what the line form accepts and names the first bad ray.
+    #[test]
+    fn arrays_are_checked_as_lines_are() {
+        let mut o = vec![0.0; 3 * 10_000];
+        let mut d: Vec<f64> = (0..3 * 10_000).map(|i| (i % 7) as f64 - 3.0).collect();
+        d[..3].copy_from_slice(&[0.0, 0.0, -0.5]);
+        let rays = rays_from_arrays(&o, &d).unwrap();
+        assert_eq!(rays.len(), 10_000);
+        assert_eq!(rays[0].dir, DVec3::new(0.0, 0.0, -0.5));
+        assert_eq!(rays[9_999].origin, DVec3::ZERO);
+        for (i, want) in [
+            (9_000, "dy is not finite (NaN)"),
+            (5_000, "oz is not finite (inf)"),
+        ] {
+            if i == 9_000 {
+                d[3 * i + 1] = f64::NAN;
+            } else {
+                o[3 * i + 2] = f64::INFINITY;
+            }
+            assert_eq!(rays_from_arrays(&o, &d).unwrap_err(), (i, want.to_string()));
+        }
+        d[3 * 4_000..3 * 4_000 + 3].copy_from_slice(&[0.0, -0.0, 0.0]);
+        let e = rays_from_arrays(&o, &d).unwrap_err();
+        assert_eq!(e, (4_000, "the direction (dx, dy, dz) is zero".to_string()));
+        assert!(rays_from_arrays(&[], &[]).unwrap().is_empty());
     }
 
     #[test]
