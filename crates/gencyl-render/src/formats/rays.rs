@@ -193,7 +193,7 @@ pub fn check_ray(v: [f64; 6]) -> Result<Ray, String> {
 pub fn rays_from_arrays(origins: &[f64], directions: &[f64]) -> Result<Vec<Ray>, (usize, String)> {
     use rayon::prelude::*;
     assert!(
-        origins.len() == directions.len() && origins.len() % 3 == 0,
+        origins.len() == directions.len() && origins.len().is_multiple_of(3),
         "three values a ray in each array"
     );
     // What check_ray accepts, tested a block at a time without branches (so vectorised).
