@@ -57,15 +57,10 @@ impl Scene {
             cylinders.len() <= Self::MAX_CYLINDERS,
             "at most 2^28 cylinders"
         );
-        let (boxes, keys): (Vec<_>, Vec<_>) = cylinders
-            .par_iter()
-            .enumerate()
-            .flat_map_iter(|(i, c)| {
-                Piece::level_pieces(level_for(c))
-                    .map(move |p| (piece_bounds(c, p), (i as u32) << PIECE_BITS | p.0))
-            })
-            .unzip();
-        let bvh = Bvh::build_keyed(&boxes, &keys);
+        let bvh = Bvh::build_from(cylinders.par_iter().enumerate().flat_map_iter(|(i, c)| {
+            Piece::level_pieces(level_for(c))
+                .map(move |p| (piece_bounds(c, p), (i as u32) << PIECE_BITS | p.0))
+        }));
         Scene { cylinders, bvh }
     }
 

@@ -520,14 +520,16 @@ impl Bvh {
     /// If `boxes` and `keys` differ in length.
     pub fn build_keyed(boxes: &[Aabb], keys: &[u32]) -> Bvh {
         assert_eq!(boxes.len(), keys.len(), "one key per box");
-        if boxes.is_empty() {
+        Self::build_from(boxes.par_iter().zip(keys).map(|(b, &key)| (*b, key)))
+    }
+
+    /// Builds the BVH over `(box, key)` pairs as they come from a parallel iterator (the
+    /// boxes are not kept: the build holds one 40-byte record a primitive).
+    pub fn build_from(items: impl ParallelIterator<Item = (Aabb, u32)>) -> Bvh {
+        let mut prims: Vec<Prim> = items.map(|(b, key)| Prim::new(&b, key)).collect();
+        if prims.is_empty() {
             return Bvh::default();
         }
-        let mut prims: Vec<Prim> = boxes
-            .par_iter()
-            .zip(keys)
-            .map(|(b, &index)| Prim::new(b, index))
-            .collect();
         let built = build(&mut prims, 0, 1);
         assert!(
             built.depth < MAX_DEPTH,
