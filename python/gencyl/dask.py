@@ -20,7 +20,7 @@ place of the LocalCluster; nothing else changes.
 
 import os
 import threading
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 

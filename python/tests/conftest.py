@@ -64,7 +64,7 @@ def hard_rays(bounds, n, seed):
     exactly perpendicular."""
     rng = np.random.default_rng(seed)
     lo, hi = bounds
-    centre, size = (lo + hi) / 2, np.linalg.norm(hi - lo)
+    size = np.linalg.norm(hi - lo)
     targets = lo + rng.random((n, 3)) * (hi - lo)
     d = rng.normal(size=(n, 3))
     axis = np.zeros(3)
