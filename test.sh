@@ -3,11 +3,12 @@
 # virtual environment of pinned packages (python/requirements-test.txt) under the target
 # folder. Needs the Rust toolchain and Python 3.9 or newer (with venv and pip); the Python
 # packages come from PyPI.
+# `./test.sh python` runs only the Python part (CI runs the Rust tests itself first).
 set -euo pipefail
 cd "$(dirname "$0")"
 # Also builds target/release/gencyl (for the CLI's integration tests), which the Python tests
 # compare against.
-cargo test --release --workspace
+[ "${1:-}" = python ] || cargo test --release --workspace
 
 target="${CARGO_TARGET_DIR:-$PWD/target}"
 venv="$target/python-venv"

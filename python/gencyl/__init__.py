@@ -16,50 +16,13 @@ rays and images come back as numpy arrays. Every result is the command line's
 """
 
 from os import PathLike
-from typing import Optional, Tuple, Union
+from typing import Optional, Union
 
 import numpy as np
 
-from ._gencyl import Scene, __version__
-from ._gencyl import render as _render
+from ._gencyl import Scene, __version__, render
 
 __all__ = ["Scene", "render", "xray", "__version__"]
-
-
-def render(
-    scene: Union[Scene, str, "PathLike[str]"],
-    integrator: Optional[str] = None,
-    spp: Optional[int] = None,
-    width: Optional[int] = None,
-    crop: Optional[Tuple[int, int, int, int]] = None,
-    seed: Optional[int] = None,
-    threads: Optional[int] = None,
-    max_depth: Optional[int] = None,
-    max_pixels: Optional[int] = None,
-    radius: Optional[float] = None,
-) -> Tuple[np.ndarray, list]:
-    """Render ``scene`` (a :class:`Scene` or the path of a scene file or ``.hair`` model).
-
-    Returns ``(image, channels)``: a float32 array of shape (H, W, C), linear values, and the
-    channel names (``R, G, B, A``, plus ``Z`` for ``depth`` or ``L`` for ``xray``). The pixels
-    are those ``gencyl render`` computes with the same settings, bit for bit, and do not
-    depend on ``threads``; ``crop = (x0, y0, x1, y1)`` renders that window of the frame (x1
-    and y1 excluded), equal to the same pixels of the whole frame. Settings left ``None`` come
-    from the scene's ``[render]`` table, else the defaults (path tracing, 16 spp, depth 16,
-    seed 1). The GIL is released while rendering; Ctrl-C stops it between bands of rows.
-    """
-    return _render(
-        scene,
-        integrator=integrator,
-        spp=spp,
-        width=width,
-        max_depth=max_depth,
-        crop=crop,
-        seed=seed,
-        threads=threads,
-        max_pixels=max_pixels,
-        radius=radius,
-    )
 
 
 def xray(

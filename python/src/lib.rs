@@ -593,11 +593,14 @@ impl PyScene {
     }
 }
 
-/// Renders a scene (a `Scene`, or the path of a scene file or `.hair` model) to a float32
-/// array (H, W, C) and its channel names: as `gencyl render` with the same settings renders
-/// it (the same pixels, bit for bit), before the image is written. Settings left `None` come
-/// from the scene's `[render]` table, else the defaults. `crop = (x0, y0, x1, y1)` renders
-/// that window of the frame (x1, y1 excluded).
+/// Renders a scene (a `Scene`, or the path of a scene file or `.hair` model) to
+/// `(image, channels)`: a float32 array (H, W, C) of linear values and the channel names
+/// (`R, G, B, A`, plus `Z` for `depth` or `L` for `xray`). The pixels are those `gencyl
+/// render` computes with the same settings, bit for bit, and do not depend on `threads`.
+/// `crop = (x0, y0, x1, y1)` renders that window of the frame (x1 and y1 excluded), equal to
+/// the same pixels of the whole frame. Settings left `None` come from the scene's `[render]`
+/// table, else the defaults (path tracing, 16 spp, depth 16, seed 1). The GIL is released
+/// while rendering; Ctrl-C stops it between bands of rows.
 #[pyfunction]
 #[pyo3(signature = (scene, integrator = None, spp = None, width = None, max_depth = None, crop = None, seed = None, threads = None, max_pixels = None, radius = None))]
 #[allow(clippy::too_many_arguments)]
