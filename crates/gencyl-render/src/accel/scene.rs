@@ -57,10 +57,18 @@ impl Scene {
             cylinders.len() <= Self::MAX_CYLINDERS,
             "at most 2^28 cylinders"
         );
-        let bvh = Bvh::build_from(cylinders.par_iter().enumerate().flat_map_iter(|(i, c)| {
-            Piece::level_pieces(level_for(c))
-                .map(move |p| (piece_bounds(c, p), (i as u32) << PIECE_BITS | p.0))
-        }));
+        let levels: Vec<u32> = cylinders.par_iter().map(level_for).collect();
+        let bvh = Bvh::build_grouped(
+            cylinders.len(),
+            |i| 1 << levels[i],
+            |i, k| {
+                let p = Piece((1 << levels[i]) + k as u32);
+                (
+                    piece_bounds(&cylinders[i], p),
+                    (i as u32) << PIECE_BITS | p.0,
+                )
+            },
+        );
         Scene { cylinders, bvh }
     }
 

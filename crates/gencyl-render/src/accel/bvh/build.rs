@@ -1,7 +1,16 @@
 //! Building a [`Bvh`]: binned surface area heuristic as pbrt builds it ([`BINS`] bins, the
 //! widest axis or all three for the largest nodes, the exact SAH over sorted primitives in
-//! small nodes, halving splits past a depth bound), children built in parallel, the binary
-//! tree then collapsed depth-first into 4-wide [`Node4`]s.
+//! small nodes, halving splits past a depth bound), each binary tree then collapsed
+//! depth-first into 4-wide [`Node4`]s.
+//!
+//! Large inputs are first grouped into clusters, as HLBVH does (Pantaleoni and Luebke 2010;
+//! Garanzha, Pantaleoni and McAllister 2011): each primitive's centroid gets a Morton code on
+//! a `2^b` grid over the centroids' box ([`cluster_bits`]), the primitives are sorted by it,
+//! and each run of equal codes is a cluster. The top of the tree is built by the binned SAH
+//! over the clusters' boxes (a cluster weighs its primitive count), and each cluster's subtree
+//! over its own primitives, all clusters in parallel. A full pass over every primitive per
+//! tree level is what made the plain build slow on millions of primitives; here only the
+//! sort and two passes see them all, and each cluster's levels run within cache.
 
 use arrayvec::ArrayVec;
 use gencyl::Aabb;
@@ -16,10 +25,8 @@ const TRAVERSAL_COST: f64 = 0.125;
 /// Below this depth the SAH chooses splits; deeper, splits halve the primitive count, so the
 /// depth (and the traversal stack) stays bounded whatever the input.
 const MAX_SAH_DEPTH: usize = 48;
-/// Nodes with at least this many primitives build their children in parallel.
-const PARALLEL_SPLIT: usize = 4096;
 /// Nodes with at most this many primitives are split with the exact SAH (sorting them).
-const SMALL: usize = 32;
+const SMALL: usize = 12;
 /// Nodes with at least this many primitives try all three axes; smaller ones the widest (as
 /// pbrt does): binning one axis is a third of the work, and on 1.6M hair segments it costs
 /// no measurable ray speed.
@@ -39,24 +46,34 @@ pub(super) fn up(x: f64) -> f32 {
     if (f as f64) < x { f.next_up() } else { f }
 }
 
-/// A primitive during the build: its box (rounded outward), its box's centre and its key.
-/// 40 bytes.
+/// A primitive during the build: its box (rounded outward), its box's centre, its key, and
+/// its cluster's Morton code ([`cluster_bits`]; 0 until the clusters are formed). 44 bytes.
 #[derive(Clone, Copy, Debug)]
-struct Prim {
+pub(super) struct Prim {
     min: [f32; 3],
     max: [f32; 3],
     center: [f32; 3],
     index: u32,
+    code: u32,
 }
 
 /// A finite stand-in for a bound, for the build's arithmetic (centroids, areas).
 #[inline]
 fn fin(x: f32) -> f64 {
-    x.clamp(-f32::MAX, f32::MAX) as f64
+    lesser(greater(x, -f32::MAX), f32::MAX) as f64
 }
 
 impl Prim {
-    fn new(b: &Aabb, index: u32) -> Self {
+    /// A placeholder, overwritten before the build reads it.
+    const EMPTY: Prim = Prim {
+        min: [0.0; 3],
+        max: [0.0; 3],
+        center: [0.0; 3],
+        index: 0,
+        code: 0,
+    };
+
+    pub(super) fn new(b: &Aabb, index: u32) -> Self {
         let (min, max) = (b.min.to_array().map(down), b.max.to_array().map(up));
         let center = std::array::from_fn(|k| (0.5 * (fin(min[k]) + fin(max[k]))) as f32);
         Prim {
@@ -64,6 +81,7 @@ impl Prim {
             max,
             center,
             index,
+            code: 0,
         }
     }
 
@@ -72,6 +90,19 @@ impl Prim {
     fn centroid(&self, k: usize) -> f64 {
         self.center[k] as f64
     }
+}
+
+/// The lesser of two bounds (one `minss`: bounds are never NaN, so `f32::min`'s NaN handling
+/// is not needed).
+#[inline]
+fn lesser(a: f32, b: f32) -> f32 {
+    if b < a { b } else { a }
+}
+
+/// The greater of two bounds.
+#[inline]
+fn greater(a: f32, b: f32) -> f32 {
+    if b > a { b } else { a }
 }
 
 /// A box during the build (in `f32`, as stored).
@@ -90,16 +121,16 @@ impl Bounds {
     #[inline]
     fn grow(&mut self, p: &Prim) {
         for k in 0..3 {
-            self.min[k] = self.min[k].min(p.min[k]);
-            self.max[k] = self.max[k].max(p.max[k]);
+            self.min[k] = lesser(self.min[k], p.min[k]);
+            self.max[k] = greater(self.max[k], p.max[k]);
         }
     }
 
     #[inline]
     fn union(mut self, o: &Bounds) -> Bounds {
         for k in 0..3 {
-            self.min[k] = self.min[k].min(o.min[k]);
-            self.max[k] = self.max[k].max(o.max[k]);
+            self.min[k] = lesser(self.min[k], o.min[k]);
+            self.max[k] = greater(self.max[k], o.max[k]);
         }
         self
     }
@@ -114,13 +145,65 @@ impl Bounds {
     }
 }
 
-/// Everything one pass over a node's primitives learns: the node's box, the centroids' box,
-/// and for each axis the bins' counts and boxes (given the centroid range).
-#[derive(Clone, Debug)]
-struct Binning {
+/// A node's primitives summed up: the box of their boxes and the box of their centres.
+#[derive(Clone, Copy, Debug)]
+struct Measure {
     bounds: Bounds,
-    bins: [[(u32, Bounds); BINS]; 3],
+    centers: Bounds,
 }
+
+impl Measure {
+    const EMPTY: Measure = Measure {
+        bounds: Bounds::EMPTY,
+        centers: Bounds::EMPTY,
+    };
+
+    #[inline]
+    fn add(&mut self, p: &Prim) {
+        self.bounds.grow(p);
+        for k in 0..3 {
+            self.centers.min[k] = lesser(self.centers.min[k], p.center[k]);
+            self.centers.max[k] = greater(self.centers.max[k], p.center[k]);
+        }
+    }
+
+    fn union(self, o: &Measure) -> Measure {
+        Measure {
+            bounds: self.bounds.union(&o.bounds),
+            centers: self.centers.union(&o.centers),
+        }
+    }
+
+    /// The centres' box in `f64`.
+    fn center_range(&self) -> (DVec3, DVec3) {
+        (
+            DVec3::from_array(self.centers.min.map(f64::from)),
+            DVec3::from_array(self.centers.max.map(f64::from)),
+        )
+    }
+}
+
+/// One pass over `prims` (in parallel for many).
+fn measure(prims: &[Prim]) -> Measure {
+    let fold = |c: &[Prim]| {
+        c.iter().fold(Measure::EMPTY, |mut m, p| {
+            m.add(p);
+            m
+        })
+    };
+    if prims.len() >= PARALLEL_BIN {
+        prims
+            .par_chunks(PARALLEL_BIN / 4)
+            .map(fold)
+            .reduce(|| Measure::EMPTY, |a, b| a.union(&b))
+    } else {
+        fold(prims)
+    }
+}
+
+/// The bins of a node on each axis: per bin the primitives' count and [`Measure`] (so a
+/// split's two sides are measured without another pass).
+type Binning = [[(u32, Measure); BINS]; 3];
 
 /// The centroid range `[lo, lo + ext]` of a node on each axis, for binning.
 #[derive(Clone, Copy, Debug)]
@@ -152,134 +235,127 @@ impl Range3 {
 
 /// Bins `prims` on every axis, or (`axis = Some(k)`) on axis `k` only.
 fn bin_prims(prims: &[Prim], range: &Range3, axis: Option<usize>) -> Binning {
-    let mut b = Binning {
-        bounds: Bounds::EMPTY,
-        bins: [[(0, Bounds::EMPTY); BINS]; 3],
-    };
+    let mut b = [[(0, Measure::EMPTY); BINS]; 3];
     let axes = match axis {
         Some(k) => k..k + 1,
         None => 0..3,
     };
     for p in prims {
-        b.bounds.grow(p);
         for k in axes.clone() {
-            let bin = &mut b.bins[k][range.bin(p, k)];
+            let bin = &mut b[k][range.bin(p, k)];
             bin.0 += 1;
-            bin.1.grow(p);
+            bin.1.add(p);
         }
     }
     b
 }
 
 fn merge(mut a: Binning, b: Binning) -> Binning {
-    a.bounds = a.bounds.union(&b.bounds);
     for k in 0..3 {
         for i in 0..BINS {
-            a.bins[k][i].0 += b.bins[k][i].0;
-            a.bins[k][i].1 = a.bins[k][i].1.union(&b.bins[k][i].1);
+            a[k][i].0 += b[k][i].0;
+            a[k][i].1 = a[k][i].1.union(&b[k][i].1);
         }
     }
     a
 }
 
-fn centroid_bounds(prims: &[Prim]) -> (DVec3, DVec3) {
-    let f = |acc: (DVec3, DVec3), p: &Prim| {
-        let c = DVec3::new(p.centroid(0), p.centroid(1), p.centroid(2));
-        (acc.0.min(c), acc.1.max(c))
-    };
-    let empty = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-    if prims.len() >= PARALLEL_BIN {
-        prims
-            .par_chunks(PARALLEL_BIN / 4)
-            .map(|c| c.iter().fold(empty, f))
-            .reduce(|| empty, |a, b| (a.0.min(b.0), a.1.max(b.1)))
-    } else {
-        prims.iter().fold(empty, f)
-    }
+/// A node of a binary build tree, in an arena (a `Vec`, reused from tree to tree), collapsed
+/// into [`Node4`]s afterwards.
+#[derive(Clone, Copy, Debug)]
+struct BinNode {
+    bounds: Bounds,
+    kind: Kind,
 }
 
-/// A node of the build tree, flattened afterwards.
-enum BuildNode {
-    Leaf {
-        bounds: Bounds,
-        start: usize,
-        count: usize,
-    },
-    Interior {
-        bounds: Bounds,
-        children: Box<[BuildNode; 2]>,
-    },
+#[derive(Clone, Copy, Debug)]
+enum Kind {
+    /// A leaf, and the slot it becomes in its parent [`Node4`].
+    Leaf(Child),
+    /// An interior node over the arena's nodes `a` and `b`.
+    Interior(u32, u32),
 }
 
-/// A built subtree and its node count and depth.
+/// A built subtree: its root in the arena and its depth.
+#[derive(Clone, Copy, Debug)]
 struct Built {
-    node: BuildNode,
-    nodes: usize,
+    node: u32,
     depth: usize,
 }
 
-fn leaf(bounds: Bounds, start: usize, count: usize) -> Built {
+fn push(arena: &mut Vec<BinNode>, bounds: Bounds, kind: Kind) -> u32 {
+    arena.push(BinNode { bounds, kind });
+    (arena.len() - 1) as u32
+}
+
+/// A leaf over the primitives `start..start + count` of the final order.
+fn leaf(arena: &mut Vec<BinNode>, bounds: Bounds, start: usize, count: usize) -> Built {
+    let slot = Child {
+        offset: start as u32,
+        count: count as u32,
+    };
     Built {
-        node: BuildNode::Leaf {
-            bounds,
-            start,
-            count,
-        },
-        nodes: 1,
+        node: push(arena, bounds, Kind::Leaf(slot)),
         depth: 1,
     }
 }
 
 /// An interior node over two built subtrees.
-fn interior(bounds: Bounds, a: Built, b: Built) -> Built {
+fn interior(arena: &mut Vec<BinNode>, bounds: Bounds, a: Built, b: Built) -> Built {
     Built {
-        nodes: 1 + a.nodes + b.nodes,
+        node: push(arena, bounds, Kind::Interior(a.node, b.node)),
         depth: 1 + a.depth.max(b.depth),
-        node: BuildNode::Interior {
-            bounds,
-            children: Box::new([a.node, b.node]),
-        },
     }
 }
 
-/// Builds the subtree over `prims`, which sit at `start..` in the final index order.
-fn build(prims: &mut [Prim], start: usize, depth: usize) -> Built {
+/// Builds the subtree over `prims`, which sit at `start..` in the final index order, into
+/// `arena`; `depth` is the subtree root's depth in the whole tree (the root is 1).
+fn build(
+    prims: &mut [Prim],
+    start: usize,
+    depth: usize,
+    node: Measure,
+    arena: &mut Vec<BinNode>,
+) -> Built {
     let n = prims.len();
     if n <= SMALL {
-        return build_small(prims, start, depth);
+        return build_small(prims, start, depth, arena);
     }
-    let cb = centroid_bounds(prims);
+    let bounds = node.bounds;
+    let cb = node.center_range();
     let range = Range3::new(&cb);
     let ext = cb.1 - cb.0;
     let widest = ext.max_position();
-    // Large nodes try every axis; smaller ones only the widest, as pbrt does.
-    let axes = if n >= ALL_AXES { None } else { Some(widest) };
-    let binning = if n >= PARALLEL_BIN {
-        prims
-            .par_chunks(PARALLEL_BIN / 4)
-            .map(|c| bin_prims(c, &range, axes))
-            .reduce_with(merge)
-            .expect("non-empty")
-    } else {
-        bin_prims(prims, &range, axes)
-    };
-    let bounds = binning.bounds;
+    // Halves along the widest centroid extent; the halves are measured by a pass each.
     let halve = |prims: &mut [Prim]| {
         prims.select_nth_unstable_by(n / 2, |a, b| {
             a.centroid(widest).total_cmp(&b.centroid(widest))
         });
-        n / 2
+        let (l, r) = prims.split_at(n / 2);
+        (n / 2, measure(l), measure(r))
     };
-    let mid = if ext.max_element() <= 0.0 {
+    let (mid, left, right) = if ext.max_element() <= 0.0 {
         // All centroids coincide: no split separates them; cut the list in half.
         if n <= MAX_LEAF {
-            return leaf(bounds, start, n);
+            return leaf(arena, bounds, start, n);
         }
-        n / 2
+        let (l, r) = prims.split_at(n / 2);
+        (n / 2, measure(l), measure(r))
     } else if depth >= MAX_SAH_DEPTH {
-        // Halve along the widest centroid extent, to bound the depth.
+        // Halve, to bound the depth.
         halve(prims)
     } else {
+        // Large nodes try every axis; smaller ones only the widest, as pbrt does.
+        let axes = if n >= ALL_AXES { None } else { Some(widest) };
+        let bins = if n >= PARALLEL_BIN {
+            prims
+                .par_chunks(PARALLEL_BIN / 4)
+                .map(|c| bin_prims(c, &range, axes))
+                .reduce_with(merge)
+                .expect("non-empty")
+        } else {
+            bin_prims(prims, &range, axes)
+        };
         // SAH: cost of a split after bin i on axis k is
         // TRAVERSAL_COST + (n_left area_left + n_right area_right) / area.
         let area = bounds.half_area();
@@ -288,18 +364,18 @@ fn build(prims: &mut [Prim], start: usize, depth: usize) -> Built {
             if ext[k] <= 0.0 || axes.is_some_and(|a| a != k) {
                 continue;
             }
-            let bins = &binning.bins[k];
+            let bins = &bins[k];
             let mut right = [(0u32, 0.0f64); BINS];
             let (mut cnt, mut bx) = (0u32, Bounds::EMPTY);
             for i in (1..BINS).rev() {
                 cnt += bins[i].0;
-                bx = bx.union(&bins[i].1);
+                bx = bx.union(&bins[i].1.bounds);
                 right[i] = (cnt, bx.half_area());
             }
             let (mut cnt, mut bx) = (0u32, Bounds::EMPTY);
             for i in 0..BINS - 1 {
                 cnt += bins[i].0;
-                bx = bx.union(&bins[i].1);
+                bx = bx.union(&bins[i].1.bounds);
                 let (rc, ra) = right[i + 1];
                 if cnt == 0 || rc == 0 {
                     continue;
@@ -318,46 +394,40 @@ fn build(prims: &mut [Prim], start: usize, depth: usize) -> Built {
                 n as f64
             };
         if n <= MAX_LEAF && n as f64 <= cost {
-            return leaf(bounds, start, n);
+            return leaf(arena, bounds, start, n);
         }
         let m = if cost.is_finite() {
             partition(prims, |p| range.bin(p, k) <= split)
         } else {
             0
         };
-        if m == 0 || m == n { halve(prims) } else { m }
+        if m == 0 || m == n {
+            halve(prims)
+        } else {
+            let side = |bins: &[(u32, Measure)]| {
+                bins.iter().fold(Measure::EMPTY, |acc, (_, m)| acc.union(m))
+            };
+            (m, side(&bins[k][..=split]), side(&bins[k][split + 1..]))
+        }
     };
-    let (left, right) = prims.split_at_mut(mid);
-    let (a, b) = if n >= PARALLEL_SPLIT {
-        rayon::join(
-            || build(left, start, depth + 1),
-            || build(right, start + mid, depth + 1),
-        )
-    } else {
-        (
-            build(left, start, depth + 1),
-            build(right, start + mid, depth + 1),
-        )
-    };
-    interior(bounds, a, b)
+    let (l, r) = prims.split_at_mut(mid);
+    let a = build(l, start, depth + 1, left, arena);
+    let b = build(r, start + mid, depth + 1, right, arena);
+    interior(arena, bounds, a, b)
 }
 
-/// Builds a small subtree with the exact SAH: primitives sorted by centroid along the widest
-/// axis, every split between them priced.
-fn build_small(prims: &mut [Prim], start: usize, depth: usize) -> Built {
+fn build_small(prims: &mut [Prim], start: usize, depth: usize, arena: &mut Vec<BinNode>) -> Built {
     let n = prims.len();
-    let bounds = prims.iter().fold(Bounds::EMPTY, |mut b, p| {
-        b.grow(p);
-        b
-    });
+    let node = measure(prims);
+    let bounds = node.bounds;
     if n == 1 {
-        return leaf(bounds, start, n);
+        return leaf(arena, bounds, start, n);
     }
-    let cb = centroid_bounds(prims);
+    let cb = node.center_range();
     let ext = cb.1 - cb.0;
     let k = ext.max_position();
     if ext.max_element() <= 0.0 && n <= MAX_LEAF {
-        return leaf(bounds, start, n);
+        return leaf(arena, bounds, start, n);
     }
     prims.sort_unstable_by(|a, b| a.centroid(k).total_cmp(&b.centroid(k)));
     let mid = if ext.max_element() <= 0.0 || depth >= MAX_SAH_DEPTH {
@@ -387,19 +457,16 @@ fn build_small(prims: &mut [Prim], start: usize, depth: usize) -> Built {
                 n as f64
             };
         if n <= MAX_LEAF && n as f64 <= cost {
-            return leaf(bounds, start, n);
+            return leaf(arena, bounds, start, n);
         }
         best.1
     };
     let (left, right) = prims.split_at_mut(mid);
-    let (a, b) = (
-        build_small(left, start, depth + 1),
-        build_small(right, start + mid, depth + 1),
-    );
-    interior(bounds, a, b)
+    let a = build_small(left, start, depth + 1, arena);
+    let b = build_small(right, start + mid, depth + 1, arena);
+    interior(arena, bounds, a, b)
 }
 
-/// Moves the elements satisfying `pred` to the front; returns how many there are.
 fn partition<T>(v: &mut [T], pred: impl Fn(&T) -> bool) -> usize {
     let mut m = 0;
     for i in 0..v.len() {
@@ -409,14 +476,6 @@ fn partition<T>(v: &mut [T], pred: impl Fn(&T) -> bool) -> usize {
         }
     }
     m
-}
-
-impl BuildNode {
-    fn bounds(&self) -> &Bounds {
-        match self {
-            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds,
-        }
-    }
 }
 
 /// `x - c` rounded down to an `f32` (the `f64` difference is within an ulp of the exact one).
@@ -438,43 +497,31 @@ fn relative_up(x: f32, c: f64) -> f32 {
         d as f32
     }
 }
-
-/// Collapses the binary subtree `node` into 4-wide nodes appended to `out` (depth first, a
-/// parent before its children) and returns its slot. A wide node starts from its binary
-/// node's two children and opens the interior child of the largest surface area until it
-/// has four (Wald et al. 2008), so the boxes tested together are the large ones a ray most
+/// Collapses the binary subtree `node` of `arena` into 4-wide nodes appended to `out` (depth
+/// first, a parent before its children) and returns its slot. A wide node starts from its
+/// binary node's two children and opens the interior child of the largest surface area until
+/// it has four (Wald et al. 2008), so the boxes tested together are the large ones a ray most
 /// likely enters.
-fn collapse(node: BuildNode, center: DVec3, out: &mut Vec<Node4>) -> Child {
-    let children = match node {
-        BuildNode::Leaf { start, count, .. } => {
-            return Child {
-                offset: start as u32,
-                count: count as u32,
-            };
-        }
-        BuildNode::Interior { children, .. } => children,
+fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -> Child {
+    let (a, b) = match arena[node as usize].kind {
+        Kind::Leaf(slot) => return slot,
+        Kind::Interior(a, b) => (a, b),
     };
-    let mut kids: ArrayVec<BuildNode, 4> = ArrayVec::from_iter(*children as [BuildNode; 2]);
+    let mut kids: ArrayVec<u32, 4> = ArrayVec::from_iter([a, b]);
     while kids.len() < 4 {
         let widest = kids
             .iter()
             .enumerate()
-            .filter(|(_, k)| matches!(k, BuildNode::Interior { .. }))
-            .max_by(|a, b| {
-                a.1.bounds()
-                    .half_area()
-                    .total_cmp(&b.1.bounds().half_area())
+            .filter_map(|(i, &k)| match arena[k as usize].kind {
+                Kind::Interior(a, b) => Some((i, a, b, arena[k as usize].bounds.half_area())),
+                Kind::Leaf(_) => None,
             })
-            .map(|(i, _)| i);
-        let Some(i) = widest else {
+            .max_by(|x, y| x.3.total_cmp(&y.3));
+        let Some((i, a, b, _)) = widest else {
             break;
         };
-        let BuildNode::Interior { children, .. } = kids.remove(i) else {
-            unreachable!("chose an interior node")
-        };
-        let [a, b] = *children;
-        kids.insert(i, b);
-        kids.insert(i, a);
+        kids[i] = a;
+        kids.insert(i + 1, b);
     }
     let me = out.len();
     out.push(Node4 {
@@ -482,18 +529,301 @@ fn collapse(node: BuildNode, center: DVec3, out: &mut Vec<Node4>) -> Child {
         max: [[f32::NEG_INFINITY; 4]; 3],
         child: [Child::EMPTY; 4],
     });
-    for (i, kid) in kids.into_iter().enumerate() {
-        let b = *kid.bounds();
+    for (i, &kid) in kids.iter().enumerate() {
+        let b = arena[kid as usize].bounds;
         for k in 0..3 {
             out[me].min[k][i] = relative_down(b.min[k], center[k]);
             out[me].max[k][i] = relative_up(b.max[k], center[k]);
         }
-        out[me].child[i] = collapse(kid, center, out);
+        out[me].child[i] = collapse(arena, kid, center, out);
     }
     Child {
         offset: me as u32,
         count: 0,
     }
+}
+
+/// Inputs with at least this many primitives are built through clusters (the module's
+/// docs); smaller ones directly.
+pub(super) const CLUSTER_MIN: usize = 1 << 15;
+/// About this many primitives per cluster where the primitives fill their box evenly (hair,
+/// which fills a shell, gives clusters a few times larger).
+const CLUSTER_SIZE: usize = 256;
+/// Below this depth the top tree (over clusters) splits by the SAH, past it by halving, so
+/// that top and cluster trees together stay within [`MAX_DEPTH`]: at most
+/// `TOP_SAH_DEPTH + 31` top levels, then (from a depth past [`MAX_SAH_DEPTH`]) at most 32.
+const TOP_SAH_DEPTH: usize = 24;
+/// Marks a top-tree slot that stands for a cluster until the clusters' nodes are placed.
+const CLUSTER_SLOT: u32 = u32::MAX - 1;
+/// Clusters built between two appends to the final node array.
+const CLUSTER_BATCH: usize = 64;
+
+/// Grid bits per axis for `n` primitives: `8^b` cells, about `n / CLUSTER_SIZE`, at most 10
+/// (a 30-bit Morton code).
+fn cluster_bits(n: usize) -> u32 {
+    (0..10)
+        .find(|&b| (CLUSTER_SIZE << (3 * (b + 1))) > n)
+        .unwrap_or(10)
+}
+
+/// Bits `0..10` of `x` spread to bits `0, 3, 6, ...` (Morton interleaving).
+fn spread(x: u32) -> u32 {
+    let mut x = x & 0x3ff;
+    x = (x | x << 16) & 0x0300_00ff;
+    x = (x | x << 8) & 0x0300_f00f;
+    x = (x | x << 4) & 0x030c_30c3;
+    (x | x << 2) & 0x0924_9249
+}
+
+/// A cluster: a run of primitives with one Morton code, and the box of their boxes.
+#[derive(Clone, Copy, Debug)]
+struct Cluster {
+    id: u32,
+    count: usize,
+    bounds: Bounds,
+    center: [f64; 3],
+}
+
+/// Builds the top tree over `clusters` into `arena` by the binned SAH on their boxes'
+/// centres (a cluster weighs its primitive count), down to one cluster a leaf (its slot marked
+/// [`CLUSTER_SLOT`], `offset` its id); records each cluster's depth in `depths`. Past
+/// [`TOP_SAH_DEPTH`], or where no SAH split separates them, the clusters are split where half
+/// the primitives lie on each side, so these levels halve the primitives (or leave a single
+/// cluster).
+fn build_top(
+    clusters: &mut [Cluster],
+    depth: usize,
+    depths: &mut [u32],
+    arena: &mut Vec<BinNode>,
+) -> Built {
+    let bounds = clusters
+        .iter()
+        .fold(Bounds::EMPTY, |b, c| b.union(&c.bounds));
+    if let [c] = clusters {
+        depths[c.id as usize] = depth as u32;
+        let slot = Child {
+            offset: c.id,
+            count: CLUSTER_SLOT,
+        };
+        return Built {
+            node: push(arena, bounds, Kind::Leaf(slot)),
+            depth: 1,
+        };
+    }
+    let n = clusters.len();
+    let (lo, hi) = clusters
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), c| {
+            let p = DVec3::from_array(c.center);
+            (lo.min(p), hi.max(p))
+        });
+    let range = Range3::new(&(lo, hi));
+    let ext = hi - lo;
+    let bin = |c: &Cluster, k: usize| {
+        (((c.center[k] - range.lo[k]) * range.scale[k]) as usize).min(BINS - 1)
+    };
+    let mut best = (f64::INFINITY, 0usize, 0usize);
+    if depth < TOP_SAH_DEPTH {
+        for k in (0..3).filter(|&k| ext[k] > 0.0) {
+            let mut bins = [(0usize, Bounds::EMPTY); BINS];
+            for c in clusters.iter() {
+                let b = &mut bins[bin(c, k)];
+                b.0 += c.count;
+                b.1 = b.1.union(&c.bounds);
+            }
+            // SAH: n_left area_left + n_right area_right, over the splits after bin i.
+            let mut right = [(0usize, 0.0f64); BINS];
+            let (mut cnt, mut bx) = (0, Bounds::EMPTY);
+            for i in (1..BINS).rev() {
+                cnt += bins[i].0;
+                bx = bx.union(&bins[i].1);
+                right[i] = (cnt, bx.half_area());
+            }
+            let (mut cnt, mut bx) = (0, Bounds::EMPTY);
+            for i in 0..BINS - 1 {
+                cnt += bins[i].0;
+                bx = bx.union(&bins[i].1);
+                let (rc, ra) = right[i + 1];
+                if cnt == 0 || rc == 0 {
+                    continue;
+                }
+                let cost = cnt as f64 * bx.half_area() + rc as f64 * ra;
+                if cost < best.0 {
+                    best = (cost, k, i);
+                }
+            }
+        }
+    }
+    let mut mid = if best.0.is_finite() {
+        partition(clusters, |c| bin(c, best.1) <= best.2)
+    } else {
+        0
+    };
+    if mid == 0 || mid == n {
+        // Along the widest extent of the centres, where the running count reaches half.
+        let k = ext.max_position();
+        clusters.sort_unstable_by(|a, b| a.center[k].total_cmp(&b.center[k]).then(a.id.cmp(&b.id)));
+        let half = clusters.iter().map(|c| c.count).sum::<usize>() / 2;
+        let mut seen = 0;
+        mid = clusters
+            .iter()
+            .position(|c| {
+                seen += c.count;
+                seen >= half
+            })
+            .map_or(n / 2, |i| i + 1)
+            .clamp(1, n - 1);
+    }
+    let (left, right) = clusters.split_at_mut(mid);
+    let a = build_top(left, depth + 1, depths, arena);
+    let b = build_top(right, depth + 1, depths, arena);
+    interior(arena, bounds, a, b)
+}
+
+/// What one thread reuses from tree to tree: the binary arena and the wide nodes' buffer.
+#[derive(Default)]
+struct Scratch {
+    arena: Vec<BinNode>,
+    nodes: Vec<Node4>,
+}
+
+/// 4-wide nodes over `prims`, numbered from 0 (the root, if interior), the root's slot, and
+/// the binary depth of the whole tree below the root's depth `depth`.
+type Subtree = (Vec<Node4>, Child, usize);
+
+/// The subtree over `prims` (at `start..` in the final order, its root at depth `depth`),
+/// built directly.
+fn build_direct(
+    prims: &mut [Prim],
+    start: usize,
+    depth: usize,
+    center: DVec3,
+    scratch: &mut Scratch,
+) -> Subtree {
+    scratch.arena.clear();
+    scratch.nodes.clear();
+    let built = build(prims, start, depth, measure(prims), &mut scratch.arena);
+    let root = collapse(&scratch.arena, built.node, center, &mut scratch.nodes);
+    (scratch.nodes.clone(), root, depth - 1 + built.depth)
+}
+
+/// The subtree over `prims` (at `start..` in the final order, its root at depth `depth`),
+/// through clusters (the module's docs) while there are at least `min` primitives
+/// and the centres are not all in one cell; the primitives end in their final order.
+fn build_clustered(
+    prims: &mut [Prim],
+    start: usize,
+    depth: usize,
+    center: DVec3,
+    min: usize,
+) -> Subtree {
+    let n = prims.len();
+    if n < min {
+        return build_direct(prims, start, depth, center, &mut Scratch::default());
+    }
+    let centers = measure(prims).center_range();
+    let bits = cluster_bits(n);
+    let (lo, ext) = (centers.0, centers.1 - centers.0);
+    let cells = (1u32 << bits) as f64;
+    let cell = |p: &Prim, k: usize| {
+        if ext[k] > 0.0 {
+            (((p.centroid(k) - lo[k]) / ext[k] * cells) as u32).min((1 << bits) - 1)
+        } else {
+            0
+        }
+    };
+    prims.par_iter_mut().for_each(|p| {
+        p.code = spread(cell(p, 0)) << 2 | spread(cell(p, 1)) << 1 | spread(cell(p, 2));
+    });
+    // By key too, so the order (and the tree) does not depend on the sort's scheduling.
+    prims.par_sort_unstable_by_key(|p| (p.code, p.index));
+    let mut starts = vec![0];
+    starts.extend((1..n).filter(|&i| prims[i].code != prims[i - 1].code));
+    starts.push(n);
+    if starts.len() == 2 {
+        // One cell holds every centre: no grid separates them.
+        return build_direct(prims, start, depth, center, &mut Scratch::default());
+    }
+    let mut clusters: Vec<Cluster> = starts
+        .par_windows(2)
+        .enumerate()
+        .map(|(id, w)| {
+            let bounds = prims[w[0]..w[1]].iter().fold(Bounds::EMPTY, |mut b, p| {
+                b.grow(p);
+                b
+            });
+            Cluster {
+                id: id as u32,
+                count: w[1] - w[0],
+                bounds,
+                center: std::array::from_fn(|k| 0.5 * (fin(bounds.min[k]) + fin(bounds.max[k]))),
+            }
+        })
+        .collect();
+    let mut depths = vec![0u32; clusters.len()];
+    let mut top_arena = Vec::new();
+    let top = build_top(&mut clusters, depth, &mut depths, &mut top_arena);
+    drop(clusters);
+    // Each cluster's own tree, numbered from 0; large clusters through clusters again.
+    let mut slices = Vec::with_capacity(depths.len());
+    let mut rest = prims;
+    for (w, &depth) in starts.windows(2).zip(&depths) {
+        let (s, r) = rest.split_at_mut(w[1] - w[0]);
+        slices.push((start + w[0], s, depth as usize));
+        rest = r;
+    }
+    // The top's nodes first (the root is node 0), then each cluster's after them, a batch
+    // of clusters at a time, so that the clusters' own buffers are reused from batch to batch
+    // and only the final array is fresh memory. It never needs more than `n - 1` nodes (one
+    // per binary interior node at most); what is reserved and not written is never touched.
+    let mut nodes = Vec::with_capacity(n);
+    let root = collapse(&top_arena, top.node, center, &mut nodes);
+    let tops = nodes.len();
+    let mut roots = Vec::with_capacity(depths.len());
+    let mut deepest = depth;
+    for batch in slices.chunks_mut(CLUSTER_BATCH) {
+        let subtrees: Vec<Subtree> = batch
+            .par_iter_mut()
+            .map_init(Scratch::default, |scratch, (start, s, depth)| {
+                if s.len() >= min {
+                    build_clustered(s, *start, *depth, center, min)
+                } else {
+                    build_direct(s, *start, *depth, center, scratch)
+                }
+            })
+            .collect();
+        for (sub, root, d) in subtrees {
+            let base = nodes.len() as u32;
+            deepest = deepest.max(d);
+            roots.push(if root.count == 0 {
+                Child {
+                    offset: root.offset + base,
+                    count: 0,
+                }
+            } else {
+                root
+            });
+            nodes.extend(sub.into_iter().map(|mut node| {
+                for c in &mut node.child {
+                    if c.count == 0 {
+                        c.offset += base;
+                    }
+                }
+                node
+            }));
+        }
+    }
+    let slot = |c: Child| {
+        if c.count == CLUSTER_SLOT {
+            roots[c.offset as usize]
+        } else {
+            c
+        }
+    };
+    for node in &mut nodes[..tops] {
+        node.child = node.child.map(slot);
+    }
+    (nodes, slot(root), deepest)
 }
 
 impl Bvh {
@@ -524,26 +854,98 @@ impl Bvh {
     }
 
     /// Builds the BVH over `(box, key)` pairs as they come from a parallel iterator (the
-    /// boxes are not kept: the build holds one 40-byte record a primitive).
+    /// boxes are not kept: the build holds one 44-byte record a primitive).
     pub fn build_from(items: impl ParallelIterator<Item = (Aabb, u32)>) -> Bvh {
-        let mut prims: Vec<Prim> = items.map(|(b, key)| Prim::new(&b, key)).collect();
+        Self::build_prims(
+            items.map(|(b, key)| Prim::new(&b, key)).collect(),
+            CLUSTER_MIN,
+        )
+    }
+
+    /// Builds the BVH over groups of primitives (the pieces of each cylinder, say): group `g`
+    /// has `count(g)` primitives, its `k`-th being `item(g, k)`, a box and a key. The records
+    /// are written in place into one array of the exact size, in parallel.
+    ///
+    /// # Panics
+    ///
+    /// If there are `2^32` or more primitives.
+    pub fn build_grouped(
+        groups: usize,
+        count: impl Fn(usize) -> usize + Sync,
+        item: impl Fn(usize, usize) -> (Aabb, u32) + Sync,
+    ) -> Bvh {
+        /// Records written by one task.
+        const CHUNK: usize = 4096;
+        let counts: Vec<usize> = (0..groups).into_par_iter().map(&count).collect();
+        let mut offsets = Vec::with_capacity(groups + 1);
+        offsets.push(0usize);
+        for &c in &counts {
+            offsets.push(offsets.last().copied().unwrap_or(0) + c);
+        }
+        let total = offsets[groups];
+        assert!(total < u32::MAX as usize, "at most 2^32 - 1 primitives");
+        let mut prims = vec![Prim::EMPTY; total];
+        prims
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(chunk, out)| {
+                let first = chunk * CHUNK;
+                // The last group starting at or before `first`, then on through the groups.
+                let mut g = offsets.partition_point(|&o| o <= first) - 1;
+                let mut k = first - offsets[g];
+                for p in out {
+                    while k >= counts[g] {
+                        g += 1;
+                        k = 0;
+                    }
+                    let (b, key) = item(g, k);
+                    *p = Prim::new(&b, key);
+                    k += 1;
+                }
+            });
+        drop(counts);
+        drop(offsets);
+        Self::build_prims(prims, CLUSTER_MIN)
+    }
+
+    /// [`Bvh::build`], through clusters (and clusters within clusters) from `cluster_min`
+    /// primitives on: tests reach the clustered build with small inputs this way.
+    #[cfg(test)]
+    pub(super) fn build_clustered_from(boxes: &[Aabb], cluster_min: usize) -> Bvh {
+        let prims = boxes
+            .iter()
+            .zip(0..)
+            .map(|(b, i)| Prim::new(b, i))
+            .collect();
+        Self::build_prims(prims, cluster_min)
+    }
+
+    /// Builds the BVH over `prims`, through clusters if there are at least `cluster_min`.
+    pub(super) fn build_prims(mut prims: Vec<Prim>, cluster_min: usize) -> Bvh {
         if prims.is_empty() {
             return Bvh::default();
         }
-        let built = build(&mut prims, 0, 1);
-        assert!(
-            built.depth < MAX_DEPTH,
-            "BVH depth {} exceeds the traversal stack",
-            built.depth
-        );
-        let b = *built.node.bounds();
-        // A binary tree of n nodes has (n - 1) / 2 interior ones; collapsing keeps about a
-        // third of them.
-        let mut nodes = Vec::with_capacity(built.nodes / 6 + 1);
+        let b = prims
+            .par_chunks(PARALLEL_BIN / 4)
+            .map(|chunk| {
+                chunk.iter().fold(Bounds::EMPTY, |mut b, p| {
+                    b.grow(p);
+                    b
+                })
+            })
+            .reduce(|| Bounds::EMPTY, |a, b| a.union(&b));
         let center = DVec3::from_array(std::array::from_fn(|k| {
             0.5 * (fin(b.min[k]) + fin(b.max[k]))
         }));
-        let root = collapse(built.node, center, &mut nodes);
+        let (mut nodes, root, depth) = if prims.len() >= cluster_min {
+            build_clustered(&mut prims, 0, 1, center, cluster_min)
+        } else {
+            build_direct(&mut prims, 0, 1, center, &mut Scratch::default())
+        };
+        assert!(
+            depth < MAX_DEPTH,
+            "BVH depth {depth} exceeds the traversal stack"
+        );
         nodes.shrink_to_fit();
         Bvh {
             nodes,
@@ -554,7 +956,7 @@ impl Bvh {
             },
             center,
             indices: prims.iter().map(|p| p.index).collect(),
-            depth: built.depth,
+            depth,
         }
     }
 }
