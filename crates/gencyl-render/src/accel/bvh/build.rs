@@ -64,17 +64,12 @@ fn fin(x: f32) -> f64 {
 }
 
 impl Prim {
-    /// A placeholder, overwritten before the build reads it.
-    const EMPTY: Prim = Prim {
-        min: [0.0; 3],
-        max: [0.0; 3],
-        center: [0.0; 3],
-        index: 0,
-        code: 0,
-    };
-
     pub(super) fn new(b: &Aabb, index: u32) -> Self {
-        let (min, max) = (b.min.to_array().map(down), b.max.to_array().map(up));
+        Self::from_bounds(&Bounds::rounded(b), index)
+    }
+
+    fn from_bounds(b: &Bounds, index: u32) -> Self {
+        let (min, max) = (b.min, b.max);
         let center = std::array::from_fn(|k| (0.5 * (fin(min[k]) + fin(max[k]))) as f32);
         Prim {
             min,
@@ -117,6 +112,14 @@ impl Bounds {
         min: [f32::INFINITY; 3],
         max: [f32::NEG_INFINITY; 3],
     };
+
+    /// `b` rounded outward to `f32`.
+    fn rounded(b: &Aabb) -> Bounds {
+        Bounds {
+            min: b.min.to_array().map(down),
+            max: b.max.to_array().map(up),
+        }
+    }
 
     #[inline]
     fn grow(&mut self, p: &Prim) {
@@ -501,10 +504,17 @@ fn relative_up(x: f32, c: f64) -> f32 {
 /// first, a parent before its children) and returns its slot. A wide node starts from its
 /// binary node's two children and opens the interior child of the largest surface area until
 /// it has four (Wald et al. 2008), so the boxes tested together are the large ones a ray most
-/// likely enters.
-fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -> Child {
+/// likely enters. `leaf` turns a leaf's slot into the slot stored (pushing nodes of its own to
+/// `out` if it needs them).
+fn collapse(
+    arena: &[BinNode],
+    node: u32,
+    center: DVec3,
+    out: &mut Vec<Node4>,
+    leaf: &impl Fn(Child, &mut Vec<Node4>) -> Child,
+) -> Child {
     let (a, b) = match arena[node as usize].kind {
-        Kind::Leaf(slot) => return slot,
+        Kind::Leaf(slot) => return leaf(slot, out),
         Kind::Interior(a, b) => (a, b),
     };
     let mut kids: ArrayVec<u32, 4> = ArrayVec::from_iter([a, b]);
@@ -524,22 +534,108 @@ fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -
         kids.insert(i + 1, b);
     }
     let me = out.len();
-    out.push(Node4 {
-        min: [[f32::INFINITY; 4]; 3],
-        max: [[f32::NEG_INFINITY; 4]; 3],
-        child: [Child::EMPTY; 4],
-    });
+    out.push(Node4::EMPTY);
     for (i, &kid) in kids.iter().enumerate() {
-        let b = arena[kid as usize].bounds;
-        for k in 0..3 {
-            out[me].min[k][i] = relative_down(b.min[k], center[k]);
-            out[me].max[k][i] = relative_up(b.max[k], center[k]);
-        }
-        out[me].child[i] = collapse(arena, kid, center, out);
+        out[me].set_box(i, &arena[kid as usize].bounds, center);
+        out[me].child[i] = collapse(arena, kid, center, out, leaf);
     }
     Child {
         offset: me as u32,
         count: 0,
+    }
+}
+
+impl Node4 {
+    const EMPTY: Node4 = Node4 {
+        min: [[f32::INFINITY; 4]; 3],
+        max: [[f32::NEG_INFINITY; 4]; 3],
+        child: [Child::EMPTY; 4],
+    };
+
+    /// Stores lane `i`'s box: `b` relative to `center`, rounded outward.
+    fn set_box(&mut self, i: usize, b: &Bounds, center: DVec3) {
+        for k in 0..3 {
+            self.min[k][i] = relative_down(b.min[k], center[k]);
+            self.max[k][i] = relative_up(b.max[k], center[k]);
+        }
+    }
+}
+
+/// The items of a grouped build ([`Bvh::build_grouped`]): group `g`'s items are
+/// `first[g]..first[g + 1]`, with these boxes and keys. The tree is built over the groups (a
+/// group's primitive has the box of its items' boxes and the group's number as its index).
+struct Items {
+    first: Vec<usize>,
+    boxes: Vec<Bounds>,
+    keys: Vec<u32>,
+}
+
+/// Most items in one run of a group's node (a group of more items than four runs hold is a
+/// leaf).
+const GROUP_RUN: usize = MAX_LEAF;
+
+impl Items {
+    fn count(&self, group: u32) -> usize {
+        self.first[group as usize + 1] - self.first[group as usize]
+    }
+
+    /// The slot of a leaf over the groups at `leaf.offset..` (global positions; `prims` sit
+    /// at `start..`, and `at[j]` is where the items of `prims[j]` start in the final item
+    /// order): a run of their items, or for a single group of two to `4 GROUP_RUN` items a
+    /// node over up to four runs of them, in the group's order (adjacent pieces of an axis
+    /// together).
+    fn slot(
+        &self,
+        leaf: Child,
+        prims: &[Prim],
+        start: usize,
+        at: &[usize],
+        center: DVec3,
+        out: &mut Vec<Node4>,
+    ) -> Child {
+        let j = leaf.offset as usize - start;
+        let (s, e) = (at[j], at[j + leaf.count as usize]);
+        let n = e - s;
+        if leaf.count == 1 && n > 1 && n <= 4 * GROUP_RUN {
+            let g = prims[j].index as usize;
+            let boxes = &self.boxes[self.first[g]..self.first[g + 1]];
+            let runs = n.min(4);
+            let me = out.len();
+            out.push(Node4::EMPTY);
+            for i in 0..runs {
+                let (a, b) = (i * n / runs, (i + 1) * n / runs);
+                let bx = boxes[a..b].iter().fold(Bounds::EMPTY, |x, y| x.union(y));
+                out[me].set_box(i, &bx, center);
+                out[me].child[i] = Child {
+                    offset: (s + a) as u32,
+                    count: (b - a) as u32,
+                };
+            }
+            return Child {
+                offset: me as u32,
+                count: 0,
+            };
+        }
+        Child {
+            offset: s as u32,
+            count: n as u32,
+        }
+    }
+}
+
+/// What a build needs throughout: the point boxes are stored relative to, from how many
+/// primitives on a subtree is built through clusters, and the items of a grouped build.
+#[derive(Clone, Copy)]
+struct Ctx<'a> {
+    center: DVec3,
+    min: usize,
+    items: Option<&'a Items>,
+}
+
+impl Ctx<'_> {
+    /// How many items `p` stands for.
+    fn count(&self, p: &Prim) -> usize {
+        self.items.map_or(1, |i| i.count(p.index))
     }
 }
 
@@ -680,46 +776,69 @@ fn build_top(
     interior(arena, bounds, a, b)
 }
 
-/// What one thread reuses from tree to tree: the binary arena and the wide nodes' buffer.
+/// What one thread reuses from tree to tree: the binary arena, the wide nodes' buffer and
+/// where each primitive's items start.
 #[derive(Default)]
 struct Scratch {
     arena: Vec<BinNode>,
     nodes: Vec<Node4>,
+    at: Vec<usize>,
 }
 
 /// 4-wide nodes over `prims`, numbered from 0 (the root, if interior), the root's slot, and
 /// the binary depth of the whole tree below the root's depth `depth`.
 type Subtree = (Vec<Node4>, Child, usize);
 
-/// The subtree over `prims` (at `start..` in the final order, its root at depth `depth`),
-/// built directly.
+/// The subtree over `prims` (at `start..` in the final order, their items from `items_at` on,
+/// its root at depth `depth`), built directly.
 fn build_direct(
     prims: &mut [Prim],
-    start: usize,
-    depth: usize,
-    center: DVec3,
+    (start, items_at, depth): (usize, usize, usize),
+    ctx: Ctx,
     scratch: &mut Scratch,
 ) -> Subtree {
-    scratch.arena.clear();
-    scratch.nodes.clear();
-    let built = build(prims, start, depth, measure(prims), &mut scratch.arena);
-    let root = collapse(&scratch.arena, built.node, center, &mut scratch.nodes);
-    (scratch.nodes.clone(), root, depth - 1 + built.depth)
+    let Scratch { arena, nodes, at } = scratch;
+    arena.clear();
+    nodes.clear();
+    let built = build(prims, start, depth, measure(prims), arena);
+    let root = match ctx.items {
+        None => collapse(arena, built.node, ctx.center, nodes, &|slot, _| slot),
+        Some(items) => {
+            at.clear();
+            let mut next = items_at;
+            for p in prims.iter() {
+                at.push(next);
+                next += items.count(p.index);
+            }
+            at.push(next);
+            collapse(arena, built.node, ctx.center, nodes, &|slot, out| {
+                items.slot(slot, prims, start, at, ctx.center, out)
+            })
+        }
+    };
+    (nodes.clone(), root, depth - 1 + built.depth)
 }
 
-/// The subtree over `prims` (at `start..` in the final order, its root at depth `depth`),
-/// through clusters (the module's docs) while there are at least `min` primitives
-/// and the centres are not all in one cell; the primitives end in their final order.
+/// The subtree over `prims` (at `start..` in the final order, their items from `items_at` on,
+/// its root at depth `depth`), through clusters (the module's docs) while there are at least
+/// `ctx.min` primitives and the centres are not all in one cell; the primitives end in their
+/// final order.
 fn build_clustered(
     prims: &mut [Prim],
-    start: usize,
-    depth: usize,
-    center: DVec3,
-    min: usize,
+    (start, items_at, depth): (usize, usize, usize),
+    ctx: Ctx,
 ) -> Subtree {
     let n = prims.len();
-    if n < min {
-        return build_direct(prims, start, depth, center, &mut Scratch::default());
+    let direct = |prims: &mut [Prim]| {
+        build_direct(
+            prims,
+            (start, items_at, depth),
+            ctx,
+            &mut Scratch::default(),
+        )
+    };
+    if n < ctx.min {
+        return direct(prims);
     }
     let centers = measure(prims).center_range();
     let bits = cluster_bits(n);
@@ -742,7 +861,7 @@ fn build_clustered(
     starts.push(n);
     if starts.len() == 2 {
         // One cell holds every centre: no grid separates them.
-        return build_direct(prims, start, depth, center, &mut Scratch::default());
+        return direct(prims);
     }
     let mut clusters: Vec<Cluster> = starts
         .par_windows(2)
@@ -764,31 +883,38 @@ fn build_clustered(
     let mut top_arena = Vec::new();
     let top = build_top(&mut clusters, depth, &mut depths, &mut top_arena);
     drop(clusters);
-    // Each cluster's own tree, numbered from 0; large clusters through clusters again.
+    // Each cluster's own tree, numbered from 0; large clusters through clusters again. A
+    // cluster's primitives stay within it, so where its items start is known now.
     let mut slices = Vec::with_capacity(depths.len());
     let mut rest = prims;
+    let mut items = items_at;
     for (w, &depth) in starts.windows(2).zip(&depths) {
         let (s, r) = rest.split_at_mut(w[1] - w[0]);
-        slices.push((start + w[0], s, depth as usize));
+        let count: usize = s.iter().map(|p| ctx.count(p)).sum();
+        slices.push((s, (start + w[0], items, depth as usize)));
+        items += count;
         rest = r;
     }
     // The top's nodes first (the root is node 0), then each cluster's after them, a batch
     // of clusters at a time, so that the clusters' own buffers are reused from batch to batch
     // and only the final array is fresh memory. It never needs more than `n - 1` nodes (one
-    // per binary interior node at most); what is reserved and not written is never touched.
-    let mut nodes = Vec::with_capacity(n);
-    let root = collapse(&top_arena, top.node, center, &mut nodes);
+    // per binary interior node at most) and a node per group; what is reserved and not
+    // written is never touched.
+    let mut nodes = Vec::with_capacity(if ctx.items.is_some() { 2 * n } else { n });
+    let root = collapse(&top_arena, top.node, ctx.center, &mut nodes, &|slot, _| {
+        slot
+    });
     let tops = nodes.len();
     let mut roots = Vec::with_capacity(depths.len());
     let mut deepest = depth;
     for batch in slices.chunks_mut(CLUSTER_BATCH) {
         let subtrees: Vec<Subtree> = batch
             .par_iter_mut()
-            .map_init(Scratch::default, |scratch, (start, s, depth)| {
-                if s.len() >= min {
-                    build_clustered(s, *start, *depth, center, min)
+            .map_init(Scratch::default, |scratch, (s, at)| {
+                if s.len() >= ctx.min {
+                    build_clustered(s, *at, ctx)
                 } else {
-                    build_direct(s, *start, *depth, center, scratch)
+                    build_direct(s, *at, ctx, scratch)
                 }
             })
             .collect();
@@ -859,12 +985,16 @@ impl Bvh {
         Self::build_prims(
             items.map(|(b, key)| Prim::new(&b, key)).collect(),
             CLUSTER_MIN,
+            None,
         )
     }
 
     /// Builds the BVH over groups of primitives (the pieces of each cylinder, say): group `g`
-    /// has `count(g)` primitives, its `k`-th being `item(g, k)`, a box and a key. The records
-    /// are written in place into one array of the exact size, in parallel.
+    /// has `count(g)` primitives, its `k`-th being `item(g, k)`, a box and a key. A group
+    /// stays together: the tree is built over the groups, each with the box of its items'
+    /// boxes, and a group of two to 32 items becomes a node over up to four runs of them in
+    /// their order (a leaf of one group, or of several, otherwise). The records are written in
+    /// place, in parallel.
     ///
     /// # Panics
     ///
@@ -874,38 +1004,57 @@ impl Bvh {
         count: impl Fn(usize) -> usize + Sync,
         item: impl Fn(usize, usize) -> (Aabb, u32) + Sync,
     ) -> Bvh {
+        Self::build_grouped_at(groups, count, item, CLUSTER_MIN)
+    }
+
+    /// [`Bvh::build_grouped`], through clusters from `cluster_min` groups on.
+    pub(super) fn build_grouped_at(
+        groups: usize,
+        count: impl Fn(usize) -> usize + Sync,
+        item: impl Fn(usize, usize) -> (Aabb, u32) + Sync,
+        cluster_min: usize,
+    ) -> Bvh {
         /// Records written by one task.
         const CHUNK: usize = 4096;
         let counts: Vec<usize> = (0..groups).into_par_iter().map(&count).collect();
-        let mut offsets = Vec::with_capacity(groups + 1);
-        offsets.push(0usize);
+        let mut first = Vec::with_capacity(groups + 1);
+        first.push(0usize);
         for &c in &counts {
-            offsets.push(offsets.last().copied().unwrap_or(0) + c);
+            first.push(first.last().copied().unwrap_or(0) + c);
         }
-        let total = offsets[groups];
+        drop(counts);
+        let total = first[groups];
         assert!(total < u32::MAX as usize, "at most 2^32 - 1 primitives");
-        let mut prims = vec![Prim::EMPTY; total];
-        prims
+        let mut boxes = vec![Bounds::EMPTY; total];
+        let mut keys = vec![0u32; total];
+        boxes
             .par_chunks_mut(CHUNK)
+            .zip(keys.par_chunks_mut(CHUNK))
             .enumerate()
-            .for_each(|(chunk, out)| {
-                let first = chunk * CHUNK;
-                // The last group starting at or before `first`, then on through the groups.
-                let mut g = offsets.partition_point(|&o| o <= first) - 1;
-                let mut k = first - offsets[g];
-                for p in out {
-                    while k >= counts[g] {
+            .for_each(|(chunk, (boxes, keys))| {
+                let at = chunk * CHUNK;
+                // The last group starting at or before `at`, then on through the groups.
+                let mut g = first.partition_point(|&o| o <= at) - 1;
+                for (i, (b, key)) in boxes.iter_mut().zip(keys).enumerate() {
+                    while at + i >= first[g + 1] {
                         g += 1;
-                        k = 0;
                     }
-                    let (b, key) = item(g, k);
-                    *p = Prim::new(&b, key);
-                    k += 1;
+                    let (bx, k) = item(g, at + i - first[g]);
+                    (*b, *key) = (Bounds::rounded(&bx), k);
                 }
             });
-        drop(counts);
-        drop(offsets);
-        Self::build_prims(prims, CLUSTER_MIN)
+        let prims: Vec<Prim> = (0..groups)
+            .into_par_iter()
+            .filter(|&g| first[g + 1] > first[g])
+            .map(|g| {
+                let b = boxes[first[g]..first[g + 1]]
+                    .iter()
+                    .fold(Bounds::EMPTY, |x, y| x.union(y));
+                Prim::from_bounds(&b, g as u32)
+            })
+            .collect();
+        let items = Items { first, boxes, keys };
+        Self::build_prims(prims, cluster_min, Some(&items))
     }
 
     /// [`Bvh::build`], through clusters (and clusters within clusters) from `cluster_min`
@@ -917,11 +1066,12 @@ impl Bvh {
             .zip(0..)
             .map(|(b, i)| Prim::new(b, i))
             .collect();
-        Self::build_prims(prims, cluster_min)
+        Self::build_prims(prims, cluster_min, None)
     }
 
-    /// Builds the BVH over `prims`, through clusters if there are at least `cluster_min`.
-    pub(super) fn build_prims(mut prims: Vec<Prim>, cluster_min: usize) -> Bvh {
+    /// Builds the BVH over `prims`, through clusters if there are at least `cluster_min`; the
+    /// primitives stand for groups of `items`, if given.
+    fn build_prims(mut prims: Vec<Prim>, cluster_min: usize, items: Option<&Items>) -> Bvh {
         if prims.is_empty() {
             return Bvh::default();
         }
@@ -937,11 +1087,12 @@ impl Bvh {
         let center = DVec3::from_array(std::array::from_fn(|k| {
             0.5 * (fin(b.min[k]) + fin(b.max[k]))
         }));
-        let (mut nodes, root, depth) = if prims.len() >= cluster_min {
-            build_clustered(&mut prims, 0, 1, center, cluster_min)
-        } else {
-            build_direct(&mut prims, 0, 1, center, &mut Scratch::default())
+        let ctx = Ctx {
+            center,
+            min: cluster_min,
+            items,
         };
+        let (mut nodes, root, depth) = build_clustered(&mut prims, (0, 0, 1), ctx);
         assert!(
             depth < MAX_DEPTH,
             "BVH depth {depth} exceeds the traversal stack"
@@ -955,7 +1106,18 @@ impl Bvh {
                 max: DVec3::from_array(b.max.map(f64::from)),
             },
             center,
-            indices: prims.iter().map(|p| p.index).collect(),
+            indices: match items {
+                None => prims.iter().map(|p| p.index).collect(),
+                Some(items) => prims
+                    .iter()
+                    .flat_map(|p| {
+                        let g = p.index as usize;
+                        items.keys[items.first[g]..items.first[g + 1]]
+                            .iter()
+                            .copied()
+                    })
+                    .collect(),
+            },
             depth,
         }
     }
