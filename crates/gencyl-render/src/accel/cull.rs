@@ -106,7 +106,38 @@ pub fn level_for(c: &GeneralizedCylinder) -> u32 {
 /// roots of `a'`), grown by [`reach`]. Never looser than the cylinder's own
 /// [`GeneralizedCylinder::bounds`], which grows the control points' box.
 pub fn piece_bounds(c: &GeneralizedCylinder, piece: Piece) -> Aabb {
-    let p = piece.sub_bezier(c.axis().points);
+    bezier_piece_bounds(c, piece, piece.sub_bezier(c.axis().points))
+}
+
+/// [`piece_bounds`] of every piece of level `level` under `piece` (`2^(level - l)` of them, in
+/// order), handed to `each`: the halvings down to them are shared, and each piece's control
+/// points are the same as [`Piece::sub_bezier`]'s, so are its box.
+pub fn pieces_bounds_under(
+    c: &GeneralizedCylinder,
+    piece: Piece,
+    level: u32,
+    each: &mut impl FnMut(Piece, Aabb),
+) {
+    fn down(
+        c: &GeneralizedCylinder,
+        piece: Piece,
+        q: [DVec3; 4],
+        level: u32,
+        each: &mut impl FnMut(Piece, Aabb),
+    ) {
+        if piece.level() >= level {
+            each(piece, bezier_piece_bounds(c, piece, q));
+            return;
+        }
+        let [a, b] = halves(&q);
+        down(c, Piece(2 * piece.0), a, level, each);
+        down(c, Piece(2 * piece.0 + 1), b, level, each);
+    }
+    down(c, piece, piece.sub_bezier(c.axis().points), level, each);
+}
+
+/// The box of `piece`, whose axis control points are `p`.
+fn bezier_piece_bounds(c: &GeneralizedCylinder, piece: Piece, p: [DVec3; 4]) -> Aabb {
     let mut lo = p[0].min(p[3]);
     let mut hi = p[0].max(p[3]);
     // a'(u)_k is the Bernstein quadratic 3 (h0 (1-u)^2 + 2 h1 u (1-u) + h2 u^2).
@@ -389,6 +420,25 @@ mod tests {
                             assert!(b.contains(p), "{p} outside {b:?} for {piece:?} of {spec:?}");
                         }
                     }
+                }
+            }
+        }
+    }
+
+    /// The shared halvings give each piece the box it has alone, to the bit.
+    #[test]
+    fn pieces_under_a_piece_have_their_own_boxes() {
+        for spec in random_fibers(&FiberParams::default(), 8).iter().take(30) {
+            let c = spec.build().unwrap();
+            for l in 0..=MAX_LEVEL {
+                for top in (0..=l).flat_map(Piece::level_pieces) {
+                    let mut seen = vec![];
+                    pieces_bounds_under(&c, top, l, &mut |p, b| seen.push((p, b)));
+                    let want: Vec<(Piece, Aabb)> = Piece::level_pieces(l)
+                        .filter(|p| p.0 >> (l - top.level()) == top.0)
+                        .map(|p| (p, piece_bounds(&c, p)))
+                        .collect();
+                    assert_eq!(seen, want, "pieces of level {l} under {top:?}");
                 }
             }
         }

@@ -4,7 +4,7 @@ use gencyl::{GeneralizedCylinder, Hit, Ray, Section};
 use rayon::prelude::*;
 
 use crate::accel::bvh::Bvh;
-use crate::accel::cull::{Piece, RaySpace, level_for, piece_bounds};
+use crate::accel::cull::{Piece, RaySpace, level_for, pieces_bounds_under};
 
 /// A hit on a scene: the cylinder's hit and the cylinder's number.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -67,26 +67,26 @@ impl Scene {
             cylinders.len() <= Self::MAX_CYLINDERS,
             "at most 2^28 cylinders"
         );
-        // Groups: (cylinder, first piece, pieces).
-        let groups: Vec<(u32, u32, u32)> = cylinders
+        // Groups: (cylinder, the piece whose pieces of level `level` the group holds, level).
+        let groups: Vec<(u32, Piece, u32)> = cylinders
             .par_iter()
             .enumerate()
             .flat_map_iter(|(i, c)| {
                 let l = level_for(c);
-                let s = l.min(GROUP_LEVEL);
-                (0..1u32 << s).map(move |j| (i as u32, (1 << l) + (j << (l - s)), 1 << (l - s)))
+                Piece::level_pieces(l.min(GROUP_LEVEL)).map(move |p| (i as u32, p, l))
             })
             .collect();
         let bvh = Bvh::build_grouped(
             groups.len(),
-            |g| groups[g].2 as usize,
-            |g, k| {
-                let (i, first, _) = groups[g];
-                let p = Piece(first + k as u32);
-                (
-                    piece_bounds(&cylinders[i as usize], p),
-                    i << PIECE_BITS | p.0,
-                )
+            |g| {
+                let (_, p, l) = groups[g];
+                1 << (l - p.level())
+            },
+            |g, out| {
+                let (i, p, l) = groups[g];
+                pieces_bounds_under(&cylinders[i as usize], p, l, &mut |piece, b| {
+                    out.push((b, i << PIECE_BITS | piece.0))
+                });
             },
         );
         Scene { cylinders, bvh }

@@ -277,6 +277,9 @@ enum Kind {
     Leaf(Child),
     /// An interior node over the arena's nodes `a` and `b`.
     Interior(u32, u32),
+    /// A node over the arena's leaves `first..first + count` (two to four), which become one
+    /// [`Node4`]'s lanes together (a group's runs of items): never opened into its parent.
+    Quad(u32, u32),
 }
 
 /// A built subtree: its root in the arena and its depth.
@@ -504,18 +507,26 @@ fn relative_up(x: f32, c: f64) -> f32 {
 /// first, a parent before its children) and returns its slot. A wide node starts from its
 /// binary node's two children and opens the interior child of the largest surface area until
 /// it has four (Wald et al. 2008), so the boxes tested together are the large ones a ray most
-/// likely enters. `leaf` turns a leaf's slot into the slot stored (pushing nodes of its own to
-/// `out` if it needs them).
-fn collapse(
-    arena: &[BinNode],
-    node: u32,
-    center: DVec3,
-    out: &mut Vec<Node4>,
-    leaf: &impl Fn(Child, &mut Vec<Node4>) -> Child,
-) -> Child {
+/// likely enters.
+fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -> Child {
     let (a, b) = match arena[node as usize].kind {
-        Kind::Leaf(slot) => return leaf(slot, out),
+        Kind::Leaf(slot) => return slot,
         Kind::Interior(a, b) => (a, b),
+        Kind::Quad(first, count) => {
+            let me = out.len();
+            out.push(Node4::EMPTY);
+            for (i, lane) in arena[first as usize..(first + count) as usize]
+                .iter()
+                .enumerate()
+            {
+                out[me].set_box(i, &lane.bounds, center);
+                out[me].child[i] = collapse(arena, first + i as u32, center, out);
+            }
+            return Child {
+                offset: me as u32,
+                count: 0,
+            };
+        }
     };
     let mut kids: ArrayVec<u32, 4> = ArrayVec::from_iter([a, b]);
     while kids.len() < 4 {
@@ -524,7 +535,7 @@ fn collapse(
             .enumerate()
             .filter_map(|(i, &k)| match arena[k as usize].kind {
                 Kind::Interior(a, b) => Some((i, a, b, arena[k as usize].bounds.half_area())),
-                Kind::Leaf(_) => None,
+                Kind::Leaf(_) | Kind::Quad(..) => None,
             })
             .max_by(|x, y| x.3.total_cmp(&y.3));
         let Some((i, a, b, _)) = widest else {
@@ -537,7 +548,7 @@ fn collapse(
     out.push(Node4::EMPTY);
     for (i, &kid) in kids.iter().enumerate() {
         out[me].set_box(i, &arena[kid as usize].bounds, center);
-        out[me].child[i] = collapse(arena, kid, center, out, leaf);
+        out[me].child[i] = collapse(arena, kid, center, out);
     }
     Child {
         offset: me as u32,
@@ -579,48 +590,62 @@ impl Items {
         self.first[group as usize + 1] - self.first[group as usize]
     }
 
-    /// The slot of a leaf over the groups at `leaf.offset..` (global positions; `prims` sit
-    /// at `start..`, and `at[j]` is where the items of `prims[j]` start in the final item
-    /// order): a run of their items, or for a single group of two to `4 GROUP_RUN` items a
-    /// node over up to four runs of them, in the group's order (adjacent pieces of an axis
-    /// together).
-    fn slot(
-        &self,
-        leaf: Child,
-        prims: &[Prim],
-        start: usize,
-        at: &[usize],
-        center: DVec3,
-        out: &mut Vec<Node4>,
-    ) -> Child {
-        let j = leaf.offset as usize - start;
-        let (s, e) = (at[j], at[j + leaf.count as usize]);
-        let n = e - s;
-        if leaf.count == 1 && n > 1 && n <= 4 * GROUP_RUN {
-            let g = prims[j].index as usize;
-            let boxes = &self.boxes[self.first[g]..self.first[g + 1]];
-            let runs = n.min(4);
-            let me = out.len();
-            out.push(Node4::EMPTY);
-            for i in 0..runs {
-                let (a, b) = (i * n / runs, (i + 1) * n / runs);
-                let bx = boxes[a..b].iter().fold(Bounds::EMPTY, |x, y| x.union(y));
-                out[me].set_box(i, &bx, center);
-                out[me].child[i] = Child {
-                    offset: (s + a) as u32,
-                    count: (b - a) as u32,
-                };
-            }
-            return Child {
-                offset: me as u32,
-                count: 0,
+    /// Turns the leaves of a grouped build's tree in `arena` (runs of groups, at global
+    /// positions; `prims` sit at `start..`, and `at[j]` is where the items of `prims[j]` start
+    /// in the final item order) into runs of their items. A leaf of a single group of two
+    /// items becomes an interior node over the two (which the collapse may open into its
+    /// parent's lanes); of three to `4 GROUP_RUN` items, a [`Kind::Quad`] over up to four runs
+    /// of them in the group's order (adjacent pieces of an axis together).
+    fn expand(&self, arena: &mut Vec<BinNode>, prims: &[Prim], start: usize, at: &[usize]) {
+        for i in 0..arena.len() {
+            let Kind::Leaf(leaf) = arena[i].kind else {
+                continue;
+            };
+            let j = leaf.offset as usize - start;
+            let (s, e) = (at[j], at[j + leaf.count as usize]);
+            let n = e - s;
+            arena[i].kind = if leaf.count == 1 && n > 1 && n <= 4 * GROUP_RUN {
+                let g = prims[j].index as usize;
+                let boxes = &self.boxes[self.first[g]..self.first[g + 1]];
+                let runs = n.min(4);
+                let first = arena.len() as u32;
+                for r in 0..runs {
+                    let (a, b) = (r * n / runs, (r + 1) * n / runs);
+                    let bounds = boxes[a..b].iter().fold(Bounds::EMPTY, |x, y| x.union(y));
+                    let run = Child {
+                        offset: (s + a) as u32,
+                        count: (b - a) as u32,
+                    };
+                    push(arena, bounds, Kind::Leaf(run));
+                }
+                if runs == 2 {
+                    Kind::Interior(first, first + 1)
+                } else {
+                    Kind::Quad(first, runs as u32)
+                }
+            } else {
+                Kind::Leaf(Child {
+                    offset: s as u32,
+                    count: n as u32,
+                })
             };
         }
-        Child {
-            offset: s as u32,
-            count: n as u32,
+    }
+}
+
+/// The depth of the binary subtree `node` of `arena` (a leaf alone is 1).
+fn depth_of(arena: &[BinNode], node: u32) -> usize {
+    let mut deepest = 0;
+    let mut todo = vec![(node, 1)];
+    while let Some((n, d)) = todo.pop() {
+        deepest = deepest.max(d);
+        match arena[n as usize].kind {
+            Kind::Interior(a, b) => todo.extend([(a, d + 1), (b, d + 1)]),
+            Kind::Quad(first, count) => todo.extend((first..first + count).map(|c| (c, d + 1))),
+            Kind::Leaf(_) => {}
         }
     }
+    deepest
 }
 
 /// What a build needs throughout: the point boxes are stored relative to, from how many
@@ -801,22 +826,20 @@ fn build_direct(
     arena.clear();
     nodes.clear();
     let built = build(prims, start, depth, measure(prims), arena);
-    let root = match ctx.items {
-        None => collapse(arena, built.node, ctx.center, nodes, &|slot, _| slot),
-        Some(items) => {
-            at.clear();
-            let mut next = items_at;
-            for p in prims.iter() {
-                at.push(next);
-                next += items.count(p.index);
-            }
+    let mut depth_below = built.depth;
+    if let Some(items) = ctx.items {
+        at.clear();
+        let mut next = items_at;
+        for p in prims.iter() {
             at.push(next);
-            collapse(arena, built.node, ctx.center, nodes, &|slot, out| {
-                items.slot(slot, prims, start, at, ctx.center, out)
-            })
+            next += items.count(p.index);
         }
-    };
-    (nodes.clone(), root, depth - 1 + built.depth)
+        at.push(next);
+        items.expand(arena, prims, start, at);
+        depth_below = depth_of(arena, built.node);
+    }
+    let root = collapse(arena, built.node, ctx.center, nodes);
+    (nodes.clone(), root, depth - 1 + depth_below)
 }
 
 /// The subtree over `prims` (at `start..` in the final order, their items from `items_at` on,
@@ -898,12 +921,10 @@ fn build_clustered(
     // The top's nodes first (the root is node 0), then each cluster's after them, a batch
     // of clusters at a time, so that the clusters' own buffers are reused from batch to batch
     // and only the final array is fresh memory. It never needs more than `n - 1` nodes (one
-    // per binary interior node at most) and a node per group; what is reserved and not
-    // written is never touched.
-    let mut nodes = Vec::with_capacity(if ctx.items.is_some() { 2 * n } else { n });
-    let root = collapse(&top_arena, top.node, ctx.center, &mut nodes, &|slot, _| {
-        slot
-    });
+    // per binary interior node at most, and a grouped build's items are leaves of the binary
+    // tree); what is reserved and not written is never touched.
+    let mut nodes = Vec::with_capacity(items - items_at);
+    let root = collapse(&top_arena, top.node, ctx.center, &mut nodes);
     let tops = nodes.len();
     let mut roots = Vec::with_capacity(depths.len());
     let mut deepest = depth;
@@ -990,32 +1011,32 @@ impl Bvh {
     }
 
     /// Builds the BVH over groups of primitives (the pieces of each cylinder, say): group `g`
-    /// has `count(g)` primitives, its `k`-th being `item(g, k)`, a box and a key. A group
-    /// stays together: the tree is built over the groups, each with the box of its items'
-    /// boxes, and a group of two to 32 items becomes a node over up to four runs of them in
-    /// their order (a leaf of one group, or of several, otherwise). The records are written in
-    /// place, in parallel.
+    /// has `count(g)` primitives, which `items(g, out)` pushes to `out` (empty), each a box
+    /// and a key. A group stays together: the tree is built over the groups, each with the
+    /// box of its items' boxes, and a group of two to 32 items becomes a node over up to four
+    /// runs of them in their order (a leaf of one group, or of several, otherwise). The
+    /// records are written in place, in parallel.
     ///
     /// # Panics
     ///
-    /// If there are `2^32` or more primitives.
+    /// If there are `2^32` or more primitives, or `items` pushes other than `count` of them.
     pub fn build_grouped(
         groups: usize,
         count: impl Fn(usize) -> usize + Sync,
-        item: impl Fn(usize, usize) -> (Aabb, u32) + Sync,
+        items: impl Fn(usize, &mut Vec<(Aabb, u32)>) + Sync,
     ) -> Bvh {
-        Self::build_grouped_at(groups, count, item, CLUSTER_MIN)
+        Self::build_grouped_at(groups, count, items, CLUSTER_MIN)
     }
 
     /// [`Bvh::build_grouped`], through clusters from `cluster_min` groups on.
     pub(super) fn build_grouped_at(
         groups: usize,
         count: impl Fn(usize) -> usize + Sync,
-        item: impl Fn(usize, usize) -> (Aabb, u32) + Sync,
+        items: impl Fn(usize, &mut Vec<(Aabb, u32)>) + Sync,
         cluster_min: usize,
     ) -> Bvh {
-        /// Records written by one task.
-        const CHUNK: usize = 4096;
+        /// Groups filled by one task.
+        const CHUNK: usize = 1024;
         let counts: Vec<usize> = (0..groups).into_par_iter().map(&count).collect();
         let mut first = Vec::with_capacity(groups + 1);
         first.push(0usize);
@@ -1027,20 +1048,33 @@ impl Bvh {
         assert!(total < u32::MAX as usize, "at most 2^32 - 1 primitives");
         let mut boxes = vec![Bounds::EMPTY; total];
         let mut keys = vec![0u32; total];
-        boxes
-            .par_chunks_mut(CHUNK)
-            .zip(keys.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(chunk, (boxes, keys))| {
-                let at = chunk * CHUNK;
-                // The last group starting at or before `at`, then on through the groups.
-                let mut g = first.partition_point(|&o| o <= at) - 1;
-                for (i, (b, key)) in boxes.iter_mut().zip(keys).enumerate() {
-                    while at + i >= first[g + 1] {
-                        g += 1;
+        // The items of groups `CHUNK j..CHUNK (j + 1)`, split off in order.
+        let mut tasks = Vec::with_capacity(groups.div_ceil(CHUNK));
+        let (mut rest_boxes, mut rest_keys) = (&mut boxes[..], &mut keys[..]);
+        for g0 in (0..groups).step_by(CHUNK) {
+            let g1 = (g0 + CHUNK).min(groups);
+            let n = first[g1] - first[g0];
+            let (b, rb) = rest_boxes.split_at_mut(n);
+            let (k, rk) = rest_keys.split_at_mut(n);
+            tasks.push((g0..g1, b, k));
+            (rest_boxes, rest_keys) = (rb, rk);
+        }
+        tasks
+            .into_par_iter()
+            .for_each_init(Vec::new, |out, (range, boxes, keys)| {
+                let at = first[range.start];
+                for g in range {
+                    out.clear();
+                    items(g, out);
+                    let slots = first[g] - at..first[g + 1] - at;
+                    assert_eq!(out.len(), slots.len(), "group {g}: not `count` items");
+                    for ((b, key), (bx, k)) in boxes[slots.clone()]
+                        .iter_mut()
+                        .zip(&mut keys[slots])
+                        .zip(out.iter())
+                    {
+                        (*b, *key) = (Bounds::rounded(bx), *k);
                     }
-                    let (bx, k) = item(g, at + i - first[g]);
-                    (*b, *key) = (Bounds::rounded(&bx), k);
                 }
             });
         let prims: Vec<Prim> = (0..groups)

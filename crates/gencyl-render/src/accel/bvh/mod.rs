@@ -812,7 +812,9 @@ mod tests {
             let bvh = Bvh::build_grouped_at(
                 counts.len(),
                 |g| counts[g],
-                |g, k| (boxes[first[g] + k], (first[g] + k) as u32),
+                |g, out| {
+                    out.extend((0..counts[g]).map(|k| (boxes[first[g] + k], (first[g] + k) as u32)))
+                },
                 min,
             );
             check_structure(&bvh, &boxes);
