@@ -18,7 +18,7 @@ pub struct SceneHit {
 /// Cylinders with a BVH over them, ready for ray queries.
 ///
 /// Each cylinder enters the BVH as one or more [`Piece`]s of its axis (long, thin fibers as
-/// several, so their boxes stay tight), in groups ([`GROUP_LEVEL`]); a ray reaching a piece's
+/// several, so their boxes stay tight), in groups ([`GROUP_BITS`]); a ray reaching a piece's
 /// box is culled by the cheap
 /// [`RaySpace`] test against that piece before the exact solver runs, once per cylinder and
 /// ray. Queries take a caller-owned [`Scratch`] so that none allocates once its buffers have
@@ -37,14 +37,15 @@ pub struct Scratch {
     tested: Vec<u32>,
 }
 
-/// A cylinder enters the BVH as the groups of its pieces under each piece of this level (its
-/// halves), which the SAH places as wholes: the pieces of a long fiber cut in eight enter as
-/// two groups of four (each a node over its four pieces). Measured against placing every piece
-/// on its own (2026-12-02, instructions): the build of 100,000 generated segments 1.55 G
-/// against 3.07 G (level 2: 2.32 G; level 0, whole cylinders: 1.08 G), camera rays through
-/// `World::intersect` on the ponytail +3.4% (level 2: +0.6%, level 0: +11%) and through
-/// `raycast` on the generated segments +4.0% (level 2: +1.3%, level 0: +16%).
-const GROUP_LEVEL: u32 = 1;
+/// A cylinder cut into more than `2^GROUP_BITS` pieces enters the BVH as groups of that many
+/// consecutive pieces, which the SAH places as wholes (each becomes one node over its
+/// pieces); one of fewer pieces enters piece by piece. Measured against placing every piece on
+/// its own (2026-12-02, instructions): the build of 100,000 generated segments (mostly cut in
+/// eight) 1.72 G against 3.07 G; camera rays on the ponytail +1.5% (`bench`, through
+/// `World::intersect`; +2.3% through `raycast` on its export) and on the generated segments
+/// +3.6% (`raycast`). Grouping every cylinder by halves instead gave 1.52 G, +2.9% and +3.9%;
+/// by whole cylinders 1.08 G, +11% and +16%.
+const GROUP_BITS: u32 = 2;
 
 /// BVH keys: cylinder number in the high bits, the piece's heap index (< 16) in the low 4.
 const PIECE_BITS: u32 = 4;
@@ -73,7 +74,8 @@ impl Scene {
             .enumerate()
             .flat_map_iter(|(i, c)| {
                 let l = level_for(c);
-                Piece::level_pieces(l.min(GROUP_LEVEL)).map(move |p| (i as u32, p, l))
+                Piece::level_pieces(if l > GROUP_BITS { l - GROUP_BITS } else { l })
+                    .map(move |p| (i as u32, p, l))
             })
             .collect();
         let bvh = Bvh::build_grouped(
