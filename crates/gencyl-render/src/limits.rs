@@ -35,9 +35,10 @@ pub const MAX_LENGTH: f64 = gencyl::limits::MAX_COORDINATE;
 /// Largest radiance, intensity or sky value.
 pub const MAX_RADIANCE: f64 = 1e20;
 /// Memory a scene takes per segment at its peak while being built (cylinder, strand data,
-/// BVH build and nodes), measured on the generated 1.6M-segment model (3.4 GiB): the basis of
-/// the estimates that refuse a scene too large for memory.
-pub const PEAK_BYTES_PER_SEGMENT: u64 = 2300;
+/// BVH build and nodes), measured on the generated 1.6M-segment model (1,812 to 2,004 MiB, at
+/// most 1,313 bytes a segment, 2026-12-02), with a margin: the basis of the estimates that
+/// refuse a scene too large for memory.
+pub const PEAK_BYTES_PER_SEGMENT: u64 = 1400;
 
 /// The most worker threads allowed: [`THREADS_PER_CORE`] per core.
 pub fn max_threads() -> usize {

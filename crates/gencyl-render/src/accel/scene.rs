@@ -18,8 +18,7 @@ pub struct SceneHit {
 /// Cylinders with a BVH over them, ready for ray queries.
 ///
 /// Each cylinder enters the BVH as one or more [`Piece`]s of its axis (long, thin fibers as
-/// several, so their boxes stay tight), in groups ([`GROUP_BITS`]); a ray reaching a piece's
-/// box is culled by the cheap
+/// several, so their boxes stay tight); a ray reaching a piece's box is culled by the cheap
 /// [`RaySpace`] test against that piece before the exact solver runs, once per cylinder and
 /// ray. Queries take a caller-owned [`Scratch`] so that none allocates once its buffers have
 /// grown.
@@ -36,16 +35,6 @@ pub struct Scratch {
     /// Cylinders already given to the exact solver in this query.
     tested: Vec<u32>,
 }
-
-/// A cylinder cut into more than `2^GROUP_BITS` pieces enters the BVH as groups of that many
-/// consecutive pieces, which the SAH places as wholes (each becomes one node over its
-/// pieces); one of fewer pieces enters piece by piece. Measured against placing every piece on
-/// its own (2026-12-02, instructions): the build of 100,000 generated segments (mostly cut in
-/// eight) 1.72 G against 3.07 G; camera rays on the ponytail +1.5% (`bench`, through
-/// `World::intersect`; +2.3% through `raycast` on its export) and on the generated segments
-/// +3.6% (`raycast`). Grouping every cylinder by halves instead gave 1.52 G, +2.9% and +3.9%;
-/// by whole cylinders 1.08 G, +11% and +16%.
-const GROUP_BITS: u32 = 2;
 
 /// BVH keys: cylinder number in the high bits, the piece's heap index (< 16) in the low 4.
 const PIECE_BITS: u32 = 4;
@@ -68,26 +57,13 @@ impl Scene {
             cylinders.len() <= Self::MAX_CYLINDERS,
             "at most 2^28 cylinders"
         );
-        // Groups: (cylinder, the piece whose pieces of level `level` the group holds, level).
-        let groups: Vec<(u32, Piece, u32)> = cylinders
-            .par_iter()
-            .enumerate()
-            .flat_map_iter(|(i, c)| {
-                let l = level_for(c);
-                Piece::level_pieces(if l > GROUP_BITS { l - GROUP_BITS } else { l })
-                    .map(move |p| (i as u32, p, l))
-            })
-            .collect();
+        let levels: Vec<u32> = cylinders.par_iter().map(level_for).collect();
         let bvh = Bvh::build_grouped(
-            groups.len(),
-            |g| {
-                let (_, p, l) = groups[g];
-                1 << (l - p.level())
-            },
-            |g, out| {
-                let (i, p, l) = groups[g];
-                pieces_bounds_under(&cylinders[i as usize], p, l, &mut |piece, b| {
-                    out.push((b, i << PIECE_BITS | piece.0))
+            cylinders.len(),
+            |i| 1 << levels[i],
+            |i, out| {
+                pieces_bounds_under(&cylinders[i], Piece::WHOLE, levels[i], &mut |p, b| {
+                    out.push((b, (i as u32) << PIECE_BITS | p.0))
                 });
             },
         );

@@ -64,12 +64,17 @@ fn fin(x: f32) -> f64 {
 }
 
 impl Prim {
-    pub(super) fn new(b: &Aabb, index: u32) -> Self {
-        Self::from_bounds(&Bounds::rounded(b), index)
-    }
+    /// A placeholder, overwritten before the build reads it.
+    const EMPTY: Prim = Prim {
+        min: [0.0; 3],
+        max: [0.0; 3],
+        center: [0.0; 3],
+        index: 0,
+        code: 0,
+    };
 
-    fn from_bounds(b: &Bounds, index: u32) -> Self {
-        let (min, max) = (b.min, b.max);
+    pub(super) fn new(b: &Aabb, index: u32) -> Self {
+        let (min, max) = (b.min.to_array().map(down), b.max.to_array().map(up));
         let center = std::array::from_fn(|k| (0.5 * (fin(min[k]) + fin(max[k]))) as f32);
         Prim {
             min,
@@ -112,14 +117,6 @@ impl Bounds {
         min: [f32::INFINITY; 3],
         max: [f32::NEG_INFINITY; 3],
     };
-
-    /// `b` rounded outward to `f32`.
-    fn rounded(b: &Aabb) -> Bounds {
-        Bounds {
-            min: b.min.to_array().map(down),
-            max: b.max.to_array().map(up),
-        }
-    }
 
     #[inline]
     fn grow(&mut self, p: &Prim) {
@@ -277,9 +274,6 @@ enum Kind {
     Leaf(Child),
     /// An interior node over the arena's nodes `a` and `b`.
     Interior(u32, u32),
-    /// A node over the arena's leaves `first..first + count` (two to four), which become one
-    /// [`Node4`]'s lanes together (a group's runs of items): never opened into its parent.
-    Quad(u32, u32),
 }
 
 /// A built subtree: its root in the arena and its depth.
@@ -512,21 +506,6 @@ fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -
     let (a, b) = match arena[node as usize].kind {
         Kind::Leaf(slot) => return slot,
         Kind::Interior(a, b) => (a, b),
-        Kind::Quad(first, count) => {
-            let me = out.len();
-            out.push(Node4::EMPTY);
-            for (i, lane) in arena[first as usize..(first + count) as usize]
-                .iter()
-                .enumerate()
-            {
-                out[me].set_box(i, &lane.bounds, center);
-                out[me].child[i] = collapse(arena, first + i as u32, center, out);
-            }
-            return Child {
-                offset: me as u32,
-                count: 0,
-            };
-        }
     };
     let mut kids: ArrayVec<u32, 4> = ArrayVec::from_iter([a, b]);
     while kids.len() < 4 {
@@ -535,7 +514,7 @@ fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -
             .enumerate()
             .filter_map(|(i, &k)| match arena[k as usize].kind {
                 Kind::Interior(a, b) => Some((i, a, b, arena[k as usize].bounds.half_area())),
-                Kind::Leaf(_) | Kind::Quad(..) => None,
+                Kind::Leaf(_) => None,
             })
             .max_by(|x, y| x.3.total_cmp(&y.3));
         let Some((i, a, b, _)) = widest else {
@@ -545,122 +524,22 @@ fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -
         kids.insert(i + 1, b);
     }
     let me = out.len();
-    out.push(Node4::EMPTY);
+    out.push(Node4 {
+        min: [[f32::INFINITY; 4]; 3],
+        max: [[f32::NEG_INFINITY; 4]; 3],
+        child: [Child::EMPTY; 4],
+    });
     for (i, &kid) in kids.iter().enumerate() {
-        out[me].set_box(i, &arena[kid as usize].bounds, center);
+        let b = arena[kid as usize].bounds;
+        for k in 0..3 {
+            out[me].min[k][i] = relative_down(b.min[k], center[k]);
+            out[me].max[k][i] = relative_up(b.max[k], center[k]);
+        }
         out[me].child[i] = collapse(arena, kid, center, out);
     }
     Child {
         offset: me as u32,
         count: 0,
-    }
-}
-
-impl Node4 {
-    const EMPTY: Node4 = Node4 {
-        min: [[f32::INFINITY; 4]; 3],
-        max: [[f32::NEG_INFINITY; 4]; 3],
-        child: [Child::EMPTY; 4],
-    };
-
-    /// Stores lane `i`'s box: `b` relative to `center`, rounded outward.
-    fn set_box(&mut self, i: usize, b: &Bounds, center: DVec3) {
-        for k in 0..3 {
-            self.min[k][i] = relative_down(b.min[k], center[k]);
-            self.max[k][i] = relative_up(b.max[k], center[k]);
-        }
-    }
-}
-
-/// The items of a grouped build ([`Bvh::build_grouped`]): group `g`'s items are
-/// `first[g]..first[g + 1]`, with these boxes and keys. The tree is built over the groups (a
-/// group's primitive has the box of its items' boxes and the group's number as its index).
-struct Items {
-    first: Vec<usize>,
-    boxes: Vec<Bounds>,
-    keys: Vec<u32>,
-}
-
-/// Most items in one run of a group's node (a group of more items than four runs hold is a
-/// leaf).
-const GROUP_RUN: usize = MAX_LEAF;
-
-impl Items {
-    fn count(&self, group: u32) -> usize {
-        self.first[group as usize + 1] - self.first[group as usize]
-    }
-
-    /// Turns the leaves of a grouped build's tree in `arena` (runs of groups, at global
-    /// positions; `prims` sit at `start..`, and `at[j]` is where the items of `prims[j]` start
-    /// in the final item order) into runs of their items. A leaf of a single group of two
-    /// items becomes an interior node over the two (which the collapse may open into its
-    /// parent's lanes); of three to `4 GROUP_RUN` items, a [`Kind::Quad`] over up to four runs
-    /// of them in the group's order (adjacent pieces of an axis together).
-    fn expand(&self, arena: &mut Vec<BinNode>, prims: &[Prim], start: usize, at: &[usize]) {
-        for i in 0..arena.len() {
-            let Kind::Leaf(leaf) = arena[i].kind else {
-                continue;
-            };
-            let j = leaf.offset as usize - start;
-            let (s, e) = (at[j], at[j + leaf.count as usize]);
-            let n = e - s;
-            arena[i].kind = if leaf.count == 1 && n > 1 && n <= 4 * GROUP_RUN {
-                let g = prims[j].index as usize;
-                let boxes = &self.boxes[self.first[g]..self.first[g + 1]];
-                let runs = n.min(4);
-                let first = arena.len() as u32;
-                for r in 0..runs {
-                    let (a, b) = (r * n / runs, (r + 1) * n / runs);
-                    let bounds = boxes[a..b].iter().fold(Bounds::EMPTY, |x, y| x.union(y));
-                    let run = Child {
-                        offset: (s + a) as u32,
-                        count: (b - a) as u32,
-                    };
-                    push(arena, bounds, Kind::Leaf(run));
-                }
-                if runs == 2 {
-                    Kind::Interior(first, first + 1)
-                } else {
-                    Kind::Quad(first, runs as u32)
-                }
-            } else {
-                Kind::Leaf(Child {
-                    offset: s as u32,
-                    count: n as u32,
-                })
-            };
-        }
-    }
-}
-
-/// The depth of the binary subtree `node` of `arena` (a leaf alone is 1).
-fn depth_of(arena: &[BinNode], node: u32) -> usize {
-    let mut deepest = 0;
-    let mut todo = vec![(node, 1)];
-    while let Some((n, d)) = todo.pop() {
-        deepest = deepest.max(d);
-        match arena[n as usize].kind {
-            Kind::Interior(a, b) => todo.extend([(a, d + 1), (b, d + 1)]),
-            Kind::Quad(first, count) => todo.extend((first..first + count).map(|c| (c, d + 1))),
-            Kind::Leaf(_) => {}
-        }
-    }
-    deepest
-}
-
-/// What a build needs throughout: the point boxes are stored relative to, from how many
-/// primitives on a subtree is built through clusters, and the items of a grouped build.
-#[derive(Clone, Copy)]
-struct Ctx<'a> {
-    center: DVec3,
-    min: usize,
-    items: Option<&'a Items>,
-}
-
-impl Ctx<'_> {
-    /// How many items `p` stands for.
-    fn count(&self, p: &Prim) -> usize {
-        self.items.map_or(1, |i| i.count(p.index))
     }
 }
 
@@ -801,67 +680,46 @@ fn build_top(
     interior(arena, bounds, a, b)
 }
 
-/// What one thread reuses from tree to tree: the binary arena, the wide nodes' buffer and
-/// where each primitive's items start.
+/// What one thread reuses from tree to tree: the binary arena and the wide nodes' buffer.
 #[derive(Default)]
 struct Scratch {
     arena: Vec<BinNode>,
     nodes: Vec<Node4>,
-    at: Vec<usize>,
 }
 
 /// 4-wide nodes over `prims`, numbered from 0 (the root, if interior), the root's slot, and
 /// the binary depth of the whole tree below the root's depth `depth`.
 type Subtree = (Vec<Node4>, Child, usize);
 
-/// The subtree over `prims` (at `start..` in the final order, their items from `items_at` on,
-/// its root at depth `depth`), built directly.
+/// The subtree over `prims` (at `start..` in the final order, its root at depth `depth`),
+/// built directly.
 fn build_direct(
     prims: &mut [Prim],
-    (start, items_at, depth): (usize, usize, usize),
-    ctx: Ctx,
+    start: usize,
+    depth: usize,
+    center: DVec3,
     scratch: &mut Scratch,
 ) -> Subtree {
-    let Scratch { arena, nodes, at } = scratch;
-    arena.clear();
-    nodes.clear();
-    let built = build(prims, start, depth, measure(prims), arena);
-    let mut depth_below = built.depth;
-    if let Some(items) = ctx.items {
-        at.clear();
-        let mut next = items_at;
-        for p in prims.iter() {
-            at.push(next);
-            next += items.count(p.index);
-        }
-        at.push(next);
-        items.expand(arena, prims, start, at);
-        depth_below = depth_of(arena, built.node);
-    }
-    let root = collapse(arena, built.node, ctx.center, nodes);
-    (nodes.clone(), root, depth - 1 + depth_below)
+    scratch.arena.clear();
+    scratch.nodes.clear();
+    let built = build(prims, start, depth, measure(prims), &mut scratch.arena);
+    let root = collapse(&scratch.arena, built.node, center, &mut scratch.nodes);
+    (scratch.nodes.clone(), root, depth - 1 + built.depth)
 }
 
-/// The subtree over `prims` (at `start..` in the final order, their items from `items_at` on,
-/// its root at depth `depth`), through clusters (the module's docs) while there are at least
-/// `ctx.min` primitives and the centres are not all in one cell; the primitives end in their
-/// final order.
+/// The subtree over `prims` (at `start..` in the final order, its root at depth `depth`),
+/// through clusters (the module's docs) while there are at least `min` primitives
+/// and the centres are not all in one cell; the primitives end in their final order.
 fn build_clustered(
     prims: &mut [Prim],
-    (start, items_at, depth): (usize, usize, usize),
-    ctx: Ctx,
+    start: usize,
+    depth: usize,
+    center: DVec3,
+    min: usize,
 ) -> Subtree {
     let n = prims.len();
-    let direct = |prims: &mut [Prim]| {
-        build_direct(
-            prims,
-            (start, items_at, depth),
-            ctx,
-            &mut Scratch::default(),
-        )
-    };
-    if n < ctx.min {
-        return direct(prims);
+    if n < min {
+        return build_direct(prims, start, depth, center, &mut Scratch::default());
     }
     let centers = measure(prims).center_range();
     let bits = cluster_bits(n);
@@ -884,7 +742,7 @@ fn build_clustered(
     starts.push(n);
     if starts.len() == 2 {
         // One cell holds every centre: no grid separates them.
-        return direct(prims);
+        return build_direct(prims, start, depth, center, &mut Scratch::default());
     }
     let mut clusters: Vec<Cluster> = starts
         .par_windows(2)
@@ -906,36 +764,31 @@ fn build_clustered(
     let mut top_arena = Vec::new();
     let top = build_top(&mut clusters, depth, &mut depths, &mut top_arena);
     drop(clusters);
-    // Each cluster's own tree, numbered from 0; large clusters through clusters again. A
-    // cluster's primitives stay within it, so where its items start is known now.
+    // Each cluster's own tree, numbered from 0; large clusters through clusters again.
     let mut slices = Vec::with_capacity(depths.len());
     let mut rest = prims;
-    let mut items = items_at;
     for (w, &depth) in starts.windows(2).zip(&depths) {
         let (s, r) = rest.split_at_mut(w[1] - w[0]);
-        let count: usize = s.iter().map(|p| ctx.count(p)).sum();
-        slices.push((s, (start + w[0], items, depth as usize)));
-        items += count;
+        slices.push((start + w[0], s, depth as usize));
         rest = r;
     }
     // The top's nodes first (the root is node 0), then each cluster's after them, a batch
     // of clusters at a time, so that the clusters' own buffers are reused from batch to batch
     // and only the final array is fresh memory. It never needs more than `n - 1` nodes (one
-    // per binary interior node at most, and a grouped build's items are leaves of the binary
-    // tree); what is reserved and not written is never touched.
-    let mut nodes = Vec::with_capacity(items - items_at);
-    let root = collapse(&top_arena, top.node, ctx.center, &mut nodes);
+    // per binary interior node at most); what is reserved and not written is never touched.
+    let mut nodes = Vec::with_capacity(n);
+    let root = collapse(&top_arena, top.node, center, &mut nodes);
     let tops = nodes.len();
     let mut roots = Vec::with_capacity(depths.len());
     let mut deepest = depth;
     for batch in slices.chunks_mut(CLUSTER_BATCH) {
         let subtrees: Vec<Subtree> = batch
             .par_iter_mut()
-            .map_init(Scratch::default, |scratch, (s, at)| {
-                if s.len() >= ctx.min {
-                    build_clustered(s, *at, ctx)
+            .map_init(Scratch::default, |scratch, (start, s, depth)| {
+                if s.len() >= min {
+                    build_clustered(s, *start, *depth, center, min)
                 } else {
-                    build_direct(s, *at, ctx, scratch)
+                    build_direct(s, *start, *depth, center, scratch)
                 }
             })
             .collect();
@@ -1006,16 +859,13 @@ impl Bvh {
         Self::build_prims(
             items.map(|(b, key)| Prim::new(&b, key)).collect(),
             CLUSTER_MIN,
-            None,
         )
     }
 
-    /// Builds the BVH over groups of primitives (the pieces of each cylinder, say): group `g`
-    /// has `count(g)` primitives, which `items(g, out)` pushes to `out` (empty), each a box
-    /// and a key. A group stays together: the tree is built over the groups, each with the
-    /// box of its items' boxes, and a group of two to 32 items becomes a node over up to four
-    /// runs of them in their order (a leaf of one group, or of several, otherwise). The
-    /// records are written in place, in parallel.
+    /// Builds the BVH over primitives that come in groups (the pieces of each cylinder, say):
+    /// group `g` has `count(g)` primitives, which `items(g, out)` pushes to `out` (empty),
+    /// each a box and a key, so that a group's items can share their work. The records are
+    /// written in place into one array of the exact size, in parallel, in the groups' order.
     ///
     /// # Panics
     ///
@@ -1024,16 +874,6 @@ impl Bvh {
         groups: usize,
         count: impl Fn(usize) -> usize + Sync,
         items: impl Fn(usize, &mut Vec<(Aabb, u32)>) + Sync,
-    ) -> Bvh {
-        Self::build_grouped_at(groups, count, items, CLUSTER_MIN)
-    }
-
-    /// [`Bvh::build_grouped`], through clusters from `cluster_min` groups on.
-    pub(super) fn build_grouped_at(
-        groups: usize,
-        count: impl Fn(usize) -> usize + Sync,
-        items: impl Fn(usize, &mut Vec<(Aabb, u32)>) + Sync,
-        cluster_min: usize,
     ) -> Bvh {
         /// Groups filled by one task.
         const CHUNK: usize = 1024;
@@ -1046,49 +886,32 @@ impl Bvh {
         drop(counts);
         let total = first[groups];
         assert!(total < u32::MAX as usize, "at most 2^32 - 1 primitives");
-        let mut boxes = vec![Bounds::EMPTY; total];
-        let mut keys = vec![0u32; total];
-        // The items of groups `CHUNK j..CHUNK (j + 1)`, split off in order.
+        let mut prims = vec![Prim::EMPTY; total];
+        // The records of groups `CHUNK j..CHUNK (j + 1)`, split off in order.
         let mut tasks = Vec::with_capacity(groups.div_ceil(CHUNK));
-        let (mut rest_boxes, mut rest_keys) = (&mut boxes[..], &mut keys[..]);
+        let mut rest = &mut prims[..];
         for g0 in (0..groups).step_by(CHUNK) {
             let g1 = (g0 + CHUNK).min(groups);
-            let n = first[g1] - first[g0];
-            let (b, rb) = rest_boxes.split_at_mut(n);
-            let (k, rk) = rest_keys.split_at_mut(n);
-            tasks.push((g0..g1, b, k));
-            (rest_boxes, rest_keys) = (rb, rk);
+            let (chunk, r) = rest.split_at_mut(first[g1] - first[g0]);
+            tasks.push((g0..g1, chunk));
+            rest = r;
         }
         tasks
             .into_par_iter()
-            .for_each_init(Vec::new, |out, (range, boxes, keys)| {
+            .for_each_init(Vec::new, |out, (range, prims)| {
                 let at = first[range.start];
                 for g in range {
                     out.clear();
                     items(g, out);
-                    let slots = first[g] - at..first[g + 1] - at;
+                    let slots = &mut prims[first[g] - at..first[g + 1] - at];
                     assert_eq!(out.len(), slots.len(), "group {g}: not `count` items");
-                    for ((b, key), (bx, k)) in boxes[slots.clone()]
-                        .iter_mut()
-                        .zip(&mut keys[slots])
-                        .zip(out.iter())
-                    {
-                        (*b, *key) = (Bounds::rounded(bx), *k);
+                    for (p, (b, key)) in slots.iter_mut().zip(out.iter()) {
+                        *p = Prim::new(b, *key);
                     }
                 }
             });
-        let prims: Vec<Prim> = (0..groups)
-            .into_par_iter()
-            .filter(|&g| first[g + 1] > first[g])
-            .map(|g| {
-                let b = boxes[first[g]..first[g + 1]]
-                    .iter()
-                    .fold(Bounds::EMPTY, |x, y| x.union(y));
-                Prim::from_bounds(&b, g as u32)
-            })
-            .collect();
-        let items = Items { first, boxes, keys };
-        Self::build_prims(prims, cluster_min, Some(&items))
+        drop(first);
+        Self::build_prims(prims, CLUSTER_MIN)
     }
 
     /// [`Bvh::build`], through clusters (and clusters within clusters) from `cluster_min`
@@ -1100,12 +923,11 @@ impl Bvh {
             .zip(0..)
             .map(|(b, i)| Prim::new(b, i))
             .collect();
-        Self::build_prims(prims, cluster_min, None)
+        Self::build_prims(prims, cluster_min)
     }
 
-    /// Builds the BVH over `prims`, through clusters if there are at least `cluster_min`; the
-    /// primitives stand for groups of `items`, if given.
-    fn build_prims(mut prims: Vec<Prim>, cluster_min: usize, items: Option<&Items>) -> Bvh {
+    /// Builds the BVH over `prims`, through clusters if there are at least `cluster_min`.
+    pub(super) fn build_prims(mut prims: Vec<Prim>, cluster_min: usize) -> Bvh {
         if prims.is_empty() {
             return Bvh::default();
         }
@@ -1121,12 +943,11 @@ impl Bvh {
         let center = DVec3::from_array(std::array::from_fn(|k| {
             0.5 * (fin(b.min[k]) + fin(b.max[k]))
         }));
-        let ctx = Ctx {
-            center,
-            min: cluster_min,
-            items,
+        let (mut nodes, root, depth) = if prims.len() >= cluster_min {
+            build_clustered(&mut prims, 0, 1, center, cluster_min)
+        } else {
+            build_direct(&mut prims, 0, 1, center, &mut Scratch::default())
         };
-        let (mut nodes, root, depth) = build_clustered(&mut prims, (0, 0, 1), ctx);
         assert!(
             depth < MAX_DEPTH,
             "BVH depth {depth} exceeds the traversal stack"
@@ -1140,18 +961,7 @@ impl Bvh {
                 max: DVec3::from_array(b.max.map(f64::from)),
             },
             center,
-            indices: match items {
-                None => prims.iter().map(|p| p.index).collect(),
-                Some(items) => prims
-                    .iter()
-                    .flat_map(|p| {
-                        let g = p.index as usize;
-                        items.keys[items.first[g]..items.first[g + 1]]
-                            .iter()
-                            .copied()
-                    })
-                    .collect(),
-            },
+            indices: prims.iter().map(|p| p.index).collect(),
             depth,
         }
     }

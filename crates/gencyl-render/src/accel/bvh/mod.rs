@@ -779,26 +779,26 @@ mod tests {
         assert!(hits > 500, "the test should see many hits, saw {hits}");
     }
 
-    /// Grouped builds (groups of 0 to 40 items, the items of a group adjacent boxes along a
-    /// fiber, as a cylinder's pieces are), directly and through clusters: every item in one
-    /// leaf under boxes that hold it, every box a ray meets visited, and a group of two to 32
-    /// items kept together (its items in one run of the index order, under one slot).
+    /// A build from groups (of 0 to 40 items, filled together) equals the build over the same
+    /// boxes and keys in one list, node for node, directly and through clusters.
     #[test]
-    fn grouped_build_is_sound() {
+    fn grouped_build_equals_the_flat_one() {
         let mut rng = Rng::from_seed(3);
-        let counts: Vec<usize> = (0..3000)
-            .map(|i| match i % 10 {
-                0 => 0,
-                1 => 33 + (i % 8),
-                _ => 1 + (rng.next_u64() % 8) as usize,
+        let counts: Vec<usize> = (0..6000)
+            .map(|i| {
+                if i % 10 == 0 {
+                    0
+                } else {
+                    (rng.next_u64() % 41) as usize
+                }
             })
             .collect();
         let mut boxes = vec![];
-        let mut groups = vec![];
+        let mut first = vec![];
         for &n in &counts {
             let start = rng.in_box(DVec3::ZERO, DVec3::splat(10.0));
             let step = rng.unit_vector() * 0.05;
-            groups.push(boxes.len()..boxes.len() + n);
+            first.push(boxes.len());
             boxes.extend((0..n).map(|k| {
                 let (a, b) = (start + step * k as f64, start + step * (k + 1) as f64);
                 Aabb {
@@ -807,47 +807,19 @@ mod tests {
                 }
             }));
         }
-        let first: Vec<usize> = groups.iter().map(|g| g.start).collect();
-        for min in [16, CLUSTER_MIN] {
-            let bvh = Bvh::build_grouped_at(
-                counts.len(),
-                |g| counts[g],
-                |g, out| {
-                    out.extend((0..counts[g]).map(|k| (boxes[first[g] + k], (first[g] + k) as u32)))
-                },
-                min,
-            );
-            check_structure(&bvh, &boxes);
-            // A group's items sit together in the index order.
-            let mut at = vec![0; boxes.len()];
-            for (i, &key) in bvh.indices.iter().enumerate() {
-                at[key as usize] = i;
-            }
-            for g in &groups {
-                let pos: Vec<usize> = g.clone().map(|k| at[k]).collect();
-                assert!(
-                    pos.windows(2).all(|w| w[1] == w[0] + 1),
-                    "group {g:?} split in the index order"
-                );
-            }
-            for _ in 0..300 {
-                let o = rng.in_box(DVec3::splat(-5.0), DVec3::splat(15.0));
-                let ray = Ray::new(o, rng.unit_vector());
-                let mut seen = vec![false; boxes.len()];
-                bvh.traverse(&ray, 0.0, f64::INFINITY, |p, t| {
-                    seen[p as usize] = true;
-                    t
-                });
-                for (i, b) in boxes.iter().enumerate() {
-                    if b.ray_range(&ray).is_some_and(|(t0, t1)| t1 >= t0.max(0.0)) {
-                        assert!(
-                            seen[i],
-                            "cluster_min {min}: ray {ray:?} met box {i} unvisited"
-                        );
-                    }
-                }
-            }
-        }
+        assert!(boxes.len() > CLUSTER_MIN, "through clusters");
+        let keys: Vec<u32> = (0..boxes.len() as u32)
+            .map(|k| k.wrapping_mul(2654435761))
+            .collect();
+        let grouped = Bvh::build_grouped(
+            counts.len(),
+            |g| counts[g],
+            |g, out| out.extend((first[g]..first[g] + counts[g]).map(|k| (boxes[k], keys[k]))),
+        );
+        let flat = Bvh::build_keyed(&boxes, &keys);
+        assert_eq!(grouped.nodes, flat.nodes, "nodes differ");
+        assert_eq!(grouped.indices, flat.indices, "indices differ");
+        assert_eq!(grouped.root, flat.root, "roots differ");
     }
 
     #[test]
