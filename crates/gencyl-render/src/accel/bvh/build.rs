@@ -260,6 +260,35 @@ fn merge(mut a: Binning, b: Binning) -> Binning {
     a
 }
 
+/// The SAH's best split of binned primitives (the count and box of each bin, in order): the
+/// bin `i` after which `n_left area_left + n_right area_right` is least, and that cost; `None`
+/// if every split leaves a side empty.
+fn best_split(bins: &[(usize, Bounds); BINS]) -> Option<(f64, usize)> {
+    // right[i]: the count and half area of bins i..
+    let mut right = [(0usize, 0.0f64); BINS];
+    let (mut cnt, mut bx) = (0, Bounds::EMPTY);
+    for i in (1..BINS).rev() {
+        cnt += bins[i].0;
+        bx = bx.union(&bins[i].1);
+        right[i] = (cnt, bx.half_area());
+    }
+    let mut best = None;
+    let (mut cnt, mut bx) = (0, Bounds::EMPTY);
+    for i in 0..BINS - 1 {
+        cnt += bins[i].0;
+        bx = bx.union(&bins[i].1);
+        let (rc, ra) = right[i + 1];
+        if cnt == 0 || rc == 0 {
+            continue;
+        }
+        let cost = cnt as f64 * bx.half_area() + rc as f64 * ra;
+        if best.is_none_or(|(c, _)| cost < c) {
+            best = Some((cost, i));
+        }
+    }
+    best
+}
+
 /// A node of a binary build tree, in an arena (a `Vec`, reused from tree to tree), collapsed
 /// into [`Node4`]s afterwards.
 #[derive(Clone, Copy, Debug)]
@@ -364,26 +393,11 @@ fn build(
             if ext[k] <= 0.0 || axes.is_some_and(|a| a != k) {
                 continue;
             }
-            let bins = &bins[k];
-            let mut right = [(0u32, 0.0f64); BINS];
-            let (mut cnt, mut bx) = (0u32, Bounds::EMPTY);
-            for i in (1..BINS).rev() {
-                cnt += bins[i].0;
-                bx = bx.union(&bins[i].1.bounds);
-                right[i] = (cnt, bx.half_area());
-            }
-            let (mut cnt, mut bx) = (0u32, Bounds::EMPTY);
-            for i in 0..BINS - 1 {
-                cnt += bins[i].0;
-                bx = bx.union(&bins[i].1.bounds);
-                let (rc, ra) = right[i + 1];
-                if cnt == 0 || rc == 0 {
-                    continue;
-                }
-                let cost = cnt as f64 * bx.half_area() + rc as f64 * ra;
-                if cost < best.0 {
-                    best = (cost, k, i);
-                }
+            let bins = std::array::from_fn(|i| (bins[k][i].0 as usize, bins[k][i].1.bounds));
+            if let Some((cost, i)) = best_split(&bins)
+                && cost < best.0
+            {
+                best = (cost, k, i);
             }
         }
         let (cost, k, split) = best;
@@ -631,26 +645,10 @@ fn build_top(
                 b.0 += c.count;
                 b.1 = b.1.union(&c.bounds);
             }
-            // SAH: n_left area_left + n_right area_right, over the splits after bin i.
-            let mut right = [(0usize, 0.0f64); BINS];
-            let (mut cnt, mut bx) = (0, Bounds::EMPTY);
-            for i in (1..BINS).rev() {
-                cnt += bins[i].0;
-                bx = bx.union(&bins[i].1);
-                right[i] = (cnt, bx.half_area());
-            }
-            let (mut cnt, mut bx) = (0, Bounds::EMPTY);
-            for i in 0..BINS - 1 {
-                cnt += bins[i].0;
-                bx = bx.union(&bins[i].1);
-                let (rc, ra) = right[i + 1];
-                if cnt == 0 || rc == 0 {
-                    continue;
-                }
-                let cost = cnt as f64 * bx.half_area() + rc as f64 * ra;
-                if cost < best.0 {
-                    best = (cost, k, i);
-                }
+            if let Some((cost, i)) = best_split(&bins)
+                && cost < best.0
+            {
+                best = (cost, k, i);
             }
         }
     }

@@ -658,16 +658,9 @@ mod tests {
         assert!(visited.iter().all(|&v| v), "an unreachable node");
     }
 
-    /// Clustered builds (nested, from 16 primitives on) of fibers' boxes: the same structure
-    /// invariants, every ray visits every box it meets (brute force, in `f64`), and the tree
-    /// costs no more than the direct build's by more than a little (SAH of the wide nodes).
-    #[test]
-    fn clustered_build_is_sound() {
-        let params = FiberParams {
-            count: 3000,
-            ..FiberParams::default()
-        };
-        let boxes: Vec<Aabb> = random_fibers(&params, 4)
+    /// The boxes of random fibers' control points, grown by their radii.
+    fn fiber_boxes(params: &FiberParams, seed: u64) -> Vec<Aabb> {
+        random_fibers(params, seed)
             .iter()
             .map(|s| {
                 let r = s.major_radius[0];
@@ -678,7 +671,19 @@ mod tests {
                     })
                 })
             })
-            .collect();
+            .collect()
+    }
+
+    /// Clustered builds (nested, from 16 primitives on) of fibers' boxes: the same structure
+    /// invariants, every ray visits every box it meets (brute force, in `f64`), and the tree
+    /// costs no more than the direct build's by more than a little (SAH of the wide nodes).
+    #[test]
+    fn clustered_build_is_sound() {
+        let params = FiberParams {
+            count: 3000,
+            ..FiberParams::default()
+        };
+        let boxes = fiber_boxes(&params, 4);
         let direct = Bvh::build(&boxes);
         for min in [16, 200, 1000] {
             let bvh = Bvh::build_clustered_from(&boxes, min);
@@ -828,18 +833,7 @@ mod tests {
             count: 20_000,
             ..FiberParams::default()
         };
-        let boxes: Vec<Aabb> = random_fibers(&params, 1)
-            .iter()
-            .map(|s| {
-                let r = s.major_radius[0];
-                s.bezier.iter().fold(Aabb::EMPTY, |b, &p| {
-                    b.union(Aabb {
-                        min: p - r,
-                        max: p + r,
-                    })
-                })
-            })
-            .collect();
+        let boxes = fiber_boxes(&params, 1);
         let one = rayon::ThreadPoolBuilder::new()
             .num_threads(1)
             .build()
