@@ -109,9 +109,10 @@ pub fn piece_bounds(c: &GeneralizedCylinder, piece: Piece) -> Aabb {
     bezier_piece_bounds(c, piece, piece.sub_bezier(c.axis().points))
 }
 
-/// [`piece_bounds`] of every piece of level `level` under `piece` (`2^(level - l)` of them, in
-/// order), handed to `each`: the halvings down to them are shared, and each piece's control
-/// points are the same as [`Piece::sub_bezier`]'s, so are its box.
+/// [`piece_bounds`] of every piece of level `level` under `piece`
+/// (`2^(level - piece.level())` of them, in order), handed to `each`: the halvings down to them
+/// are shared, and each piece's control points are the same as [`Piece::sub_bezier`]'s, and so
+/// is its box.
 pub fn pieces_bounds_under(
     c: &GeneralizedCylinder,
     piece: Piece,

@@ -49,7 +49,7 @@ pub(super) fn up(x: f64) -> f32 {
 /// A primitive during the build: its box (rounded outward), its box's centre, its key, and
 /// its cluster's Morton code ([`cluster_bits`]; 0 until the clusters are formed). 44 bytes.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Prim {
+struct Prim {
     min: [f32; 3],
     max: [f32; 3],
     center: [f32; 3],
@@ -73,7 +73,7 @@ impl Prim {
         code: 0,
     };
 
-    pub(super) fn new(b: &Aabb, index: u32) -> Self {
+    fn new(b: &Aabb, index: u32) -> Self {
         let (min, max) = (b.min.to_array().map(down), b.max.to_array().map(up));
         let center = std::array::from_fn(|k| (0.5 * (fin(min[k]) + fin(max[k]))) as f32);
         Prim {
@@ -563,9 +563,10 @@ pub(super) const CLUSTER_MIN: usize = 1 << 15;
 /// About this many primitives per cluster where the primitives fill their box evenly (hair,
 /// which fills a shell, gives clusters a few times larger).
 const CLUSTER_SIZE: usize = 256;
-/// Below this depth the top tree (over clusters) splits by the SAH, past it by halving, so
-/// that top and cluster trees together stay within [`MAX_DEPTH`]: at most
-/// `TOP_SAH_DEPTH + 31` top levels, then (from a depth past [`MAX_SAH_DEPTH`]) at most 32.
+/// Below this depth the top tree (over clusters) splits by the SAH, past it where half the
+/// primitives lie on each side, so that top and cluster trees together stay within
+/// [`MAX_DEPTH`]: SAH levels end at this depth in a top tree and at [`MAX_SAH_DEPTH`] in any
+/// tree, and every level past them halves the primitives (or leaves one cluster), at most 32.
 const TOP_SAH_DEPTH: usize = 24;
 /// Marks a top-tree slot that stands for a cluster until the clusters' nodes are placed.
 const CLUSTER_SLOT: u32 = u32::MAX - 1;
@@ -733,7 +734,7 @@ fn build_clustered(
     prims.par_iter_mut().for_each(|p| {
         p.code = spread(cell(p, 0)) << 2 | spread(cell(p, 1)) << 1 | spread(cell(p, 2));
     });
-    // By key too, so the order (and the tree) does not depend on the sort's scheduling.
+    // By key too, so that a cluster's order (and its tree) is fixed by the keys.
     prims.par_sort_unstable_by_key(|p| (p.code, p.index));
     let mut starts = vec![0];
     starts.extend((1..n).filter(|&i| prims[i].code != prims[i - 1].code));
@@ -925,7 +926,7 @@ impl Bvh {
     }
 
     /// Builds the BVH over `prims`, through clusters if there are at least `cluster_min`.
-    pub(super) fn build_prims(mut prims: Vec<Prim>, cluster_min: usize) -> Bvh {
+    fn build_prims(mut prims: Vec<Prim>, cluster_min: usize) -> Bvh {
         if prims.is_empty() {
             return Bvh::default();
         }
