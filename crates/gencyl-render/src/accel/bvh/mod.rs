@@ -1,7 +1,8 @@
 //! A bounding volume hierarchy over axis-aligned boxes.
 //!
 //! Built as pbrt builds it (a binary tree by the binned surface area heuristic, [`BINS`] bins
-//! on each axis), then collapsed into a 4-wide tree as Embree stores it: each `Node4` holds
+//! on each axis), for large inputs over Morton-code clusters as HLBVH builds it (`build.rs`),
+//! then collapsed into a 4-wide tree as Embree stores it: each `Node4` holds
 //! the boxes of up to four children, which one ray tests together (four SIMD lanes), and the
 //! children it enters are visited nearest first. Queried as parry queries it: one
 //! traversal core, [`Bvh::traverse`], takes a closure that tests a primitive and returns the
