@@ -143,7 +143,7 @@ struct GenerateArgs {
 
 #[derive(Debug, clap::Args)]
 struct BenchArgs {
-    /// Also the generated 1.6-million-segment model (100,000 strands x 16; about 4 GB).
+    /// Also the generated 1.6-million-segment model (100,000 strands x 16; about 2 GB).
     #[arg(long)]
     large: bool,
     /// The `ponytail` scene (the TressFX ponytail over a scalp).
