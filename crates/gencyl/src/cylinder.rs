@@ -578,7 +578,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     ///
     /// `dr` is `r'`, the scale's rate for the unit circle.
     fn round_normal(&self, u: f64, v: f64, dr: f64) -> DVec3 {
-        let f = self.frame(u);
+        self.round_normal_in(u, v, dr, &self.frame(u))
+    }
+
+    /// [`Self::round_normal`] with the frame at `u` given.
+    pub(crate) fn round_normal_in(&self, u: f64, v: f64, dr: f64, f: &Frame) -> DVec3 {
         let c = self.sweep.apply(u, V2::cst(self.section.point(v))).value();
         let off = c.x * f.n + c.y * f.b;
         let (d1, d2) = (self.axis.d1(u), self.axis.d2(u));

@@ -201,23 +201,42 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let o = o_local + t0 * d;
 
         let mut roots = SideRoots::new();
-        self.side_roots(o, d, self.resolve(method), &mut roots);
+        let method = self.resolve(method);
+        self.side_roots(o, d, method, &mut roots);
+        // The scale's rate of a round fiber (whose normal is then frame-free).
+        let round = self
+            .sweep
+            .uniform_scale()
+            .filter(|_| method == Method::Round);
         for r in &roots {
             let t = t0 + r.w;
             if t > tmin && t < tmax && t.is_finite() {
                 let u = r.u.clamp(0.0, 1.0);
+                // A round fiber's root leaves its section angle to here, so that the angle and
+                // the normal share one frame.
+                let frame = round.map(|_| self.frame(r.u));
+                let v = match &frame {
+                    Some(f) => round::section_angle(self, (o, d), (r.u, r.w), f),
+                    None => r.v,
+                };
                 // v in [0, 2 pi): rem_euclid of a tiny negative angle can round up to 2 pi.
-                let v = if r.v >= std::f64::consts::TAU || r.v < 0.0 {
-                    r.v.rem_euclid(std::f64::consts::TAU) % std::f64::consts::TAU
+                let v = if !(0.0..std::f64::consts::TAU).contains(&v) {
+                    v.rem_euclid(std::f64::consts::TAU) % std::f64::consts::TAU
                 } else {
-                    r.v
+                    v
+                };
+                let normal = match (round, frame) {
+                    (Some([k0, k1]), Some(f)) if u == r.u => {
+                        self.round_normal_in(u, v, k1 - k0, &f)
+                    }
+                    _ => self.normal(u, v),
                 };
                 out.push(Hit {
                     t,
                     u,
                     v,
                     point: ray.at(t),
-                    normal: self.normal(u, v),
+                    normal,
                     part: Part::Side,
                 });
             }

@@ -31,6 +31,7 @@ use glam::{DVec2, DVec3};
 use super::{SideRoot, SideRoots};
 use crate::bernstein::Bernstein;
 use crate::cylinder::GeneralizedCylinder;
+use crate::frame::Frame;
 use crate::real::{Interval, Real, V2};
 use crate::roots::bracketed_root;
 use crate::section::CrossSection;
@@ -350,7 +351,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     for (s, sign) in found {
         // The crossing of the sphere: z = Z ± sqrt(D) along d / |d| from o.
         let w = (k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt()) / len;
-        push(cyl, o, d, u0 + (u1 - u0) * s, w, out);
+        push(cyl, d, u0 + (u1 - u0) * s, w, out);
     }
 }
 
@@ -386,7 +387,6 @@ fn stretch_roots(k: &Polys) -> ArrayVec<(f64, f64), 16> {
 /// Records the hit at `(u, w)`, unless it repeats one (both branches meet where `D = 0`).
 fn push<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
-    o: DVec3,
     d: DVec3,
     u: f64,
     w: f64,
@@ -403,18 +403,25 @@ fn push<C: CrossSection, S: SweepRule>(
     {
         return;
     }
-    // The section angle: the offset from the axis in the frame, through the rule's rotation.
+    // The section angle is left to the hit, which takes it and the normal from one frame
+    // ([`section_angle`]).
+    out.push(SideRoot { u, w, v: f64::NAN });
+}
+
+/// The section angle of the side hit at `(u, w)` of the local ray `o + w d`, with `f` the
+/// frame at `u`: the offset from the axis in the frame, through the rule's inverse.
+pub(crate) fn section_angle<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (o, d): (DVec3, DVec3),
+    (u, w): (f64, f64),
+    f: &Frame,
+) -> f64 {
     let e = o + w * d - cyl.axis.point(u);
-    let f = cyl.frame(u);
     let phi = cyl
         .sweep
         .inverse(u, V2::new(f.n.dot(e), f.b.dot(e)))
         .value();
-    out.push(SideRoot {
-        u,
-        w,
-        v: crate::section::angle(DVec2::new(phi.x, phi.y)),
-    });
+    crate::section::angle(DVec2::new(phi.x, phi.y))
 }
 
 #[cfg(test)]
