@@ -78,7 +78,8 @@ fn widen(a: f64, b: f64, lo: f64, hi: f64) -> (f64, f64) {
     (if a <= 0.0 { lo } else { a }, if b >= 1.0 { hi } else { b })
 }
 
-/// A side-surface root: axis parameter, local ray parameter, section parameter.
+/// A side-surface root: axis parameter, local ray parameter, section parameter (NaN from the
+/// Round method, whose hits take it from the frame they share with their normal).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SideRoot {
     pub u: f64,
@@ -203,7 +204,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let mut roots = SideRoots::new();
         let method = self.resolve(method);
         self.side_roots(o, d, method, &mut roots);
-        // The scale's rate of a round fiber (whose normal is then frame-free).
+        // A round fiber's scale at its ends, when the Round method found the roots.
         let round = self
             .sweep
             .uniform_scale()
