@@ -942,11 +942,7 @@ impl Bvh {
         let center = DVec3::from_array(std::array::from_fn(|k| {
             0.5 * (fin(b.min[k]) + fin(b.max[k]))
         }));
-        let (mut nodes, root, depth) = if prims.len() >= cluster_min {
-            build_clustered(&mut prims, 0, 1, center, cluster_min)
-        } else {
-            build_direct(&mut prims, 0, 1, center, &mut Scratch::default())
-        };
+        let (mut nodes, root, depth) = build_clustered(&mut prims, 0, 1, center, cluster_min);
         assert!(
             depth < MAX_DEPTH,
             "BVH depth {depth} exceeds the traversal stack"
