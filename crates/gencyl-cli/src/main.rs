@@ -14,11 +14,13 @@ use clap::{Parser, Subcommand};
 use gencyl_render::accel::{Scene, Scratch};
 use gencyl_render::formats::{Film, Window, hair};
 use gencyl_render::limits;
+use gencyl_render::optics::scanner::Quantity;
 use gencyl_render::raycast::{self, RaycastOptions};
 use gencyl_render::scene_file::{SceneDescription, SceneError};
 use gencyl_render::scenes::job::{self, PlanError, RenderJob, RenderRequest};
 use gencyl_render::scenes::{builtin, synth};
 use gencyl_render::settings::{Integrator, RenderTable};
+use gencyl_render::transport::ct::Projector;
 use gencyl_render::transport::{World, integrator};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -49,6 +51,34 @@ enum Command {
     /// `[[cylinder]]` tables, and optionally the scene's camera rays as a ray file: the same
     /// geometry and rays for another intersector.
     Export(ExportArgs),
+    /// X-ray CT projections of a scene with a `[ct]` table: a multi-page float32 TIFF (one
+    /// page per view) and a JSON sidecar with the geometry as ASTRA vectors.
+    Ct(CtArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct CtArgs {
+    /// A scene file (TOML) with a `[ct]` table.
+    scene: PathBuf,
+    /// The projections (`.tif` or `.tiff`); the sidecar is the same name with `.json`.
+    #[arg(short, long, default_value = "projections.tif")]
+    output: PathBuf,
+    /// Only views `a..b` of the scan (0-based, b excluded): the parts of a scan split this way
+    /// concatenate, page by page, to the whole, bit for bit.
+    #[arg(long)]
+    views: Option<String>,
+    /// What a pixel records (default: the `[ct]` table's): absorbance, transmission or length.
+    #[arg(long)]
+    quantity: Option<String>,
+    /// With `--quantity length`: only this material's path length.
+    #[arg(long)]
+    material: Option<String>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -230,6 +260,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Generate(args) => generate_command(args),
         Command::Bench(args) => bench_command(args),
         Command::Export(args) => export_command(args),
+        Command::Ct(args) => ct_command(args),
     };
     let exhausted = gencyl::budget::exhausted_searches();
     if exhausted > 0 {
@@ -398,6 +429,104 @@ fn render_command(args: RenderArgs) -> Result<()> {
         );
         Ok(())
     })
+}
+
+fn ct_command(args: CtArgs) -> Result<()> {
+    let pool = thread_pool(args.threads)?;
+    check_output(&args.output, &["tif", "tiff"])?;
+    let sidecar_path = args.output.with_extension("json");
+    pool.install(|| {
+        let t0 = Instant::now();
+        let name = args.scene.display().to_string();
+        let desc = SceneDescription::load(&args.scene)?;
+        let Some(mut setup) = desc.ct.clone() else {
+            bail!("{name}: the scene has no [ct] table (the scanner: see the README's CT section)");
+        };
+        if let Some(q) = &args.quantity {
+            setup.quantity = q.parse().map_err(|e: String| anyhow::anyhow!("--quantity: {e}"))?;
+            if setup.quantity != Quantity::Length {
+                setup.material = None;
+            }
+        }
+        if let Some(m) = &args.material {
+            if setup.quantity != Quantity::Length {
+                bail!("--material applies to the length quantity only (absorbance and transmission sum every material)");
+            }
+            let index = desc.materials.iter().position(|x| &x.name == m).ok_or_else(|| {
+                let known: Vec<&str> = desc.materials.iter().map(|x| x.name.as_str()).collect();
+                anyhow::anyhow!("--material: unknown material `{m}` (defined: {})", known.join(", "))
+            })?;
+            setup.material = Some(index as u32);
+        }
+        let total = setup.scanner.views.len();
+        let views = match &args.views {
+            Some(text) => parse_views(text, total)?,
+            None => 0..total,
+        };
+        let world = World::new(desc);
+        let t1 = Instant::now();
+        let projector = Projector::new(&world, &setup);
+        let bar = if args.quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::new(views.len() as u64)
+        };
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} {bar:40} {pos}/{len} views, {elapsed} (ETA {eta})",
+            )
+            .expect("a valid template"),
+        );
+        let io = |e: std::io::Error| format!("{}: cannot write: {e}", args.output.display());
+        gencyl_render::formats::write_atomic(
+            &args.output,
+            |out| projector.write_stack(out, views.clone(), |n| bar.set_position(n as u64)),
+            io,
+        )
+        .map_err(anyhow::Error::msg)?;
+        bar.finish_and_clear();
+        let t2 = Instant::now();
+        let sidecar = projector.sidecar(views.clone(), &name);
+        let text = serde_json::to_string_pretty(&sidecar).expect("JSON of plain values");
+        if let Err(e) = write_atomically(&sidecar_path, text.as_bytes()) {
+            let _ = std::fs::remove_file(&args.output);
+            return Err(e);
+        }
+        let s = &setup.scanner;
+        let seconds = (t2 - t1).as_secs_f64();
+        eprintln!(
+            "{}: views {}..{} of {}, {}x{} pixels, {} rays per pixel, {}; {} cylinders; load and BVH {:.2} s, projections {:.2} s ({:.3} views/s); geometry in {}",
+            args.output.display(),
+            views.start,
+            views.end,
+            total,
+            s.columns,
+            s.rows,
+            s.samples(),
+            setup.quantity.name(),
+            world.scene.cylinders().len(),
+            (t1 - t0).as_secs_f64(),
+            seconds,
+            views.len() as f64 / seconds.max(1e-9),
+            sidecar_path.display()
+        );
+        Ok(())
+    })
+}
+
+/// `a..b` (0-based, `b` excluded) within a scan of `total` views.
+fn parse_views(text: &str, total: usize) -> Result<std::ops::Range<usize>> {
+    let bad = || {
+        anyhow::anyhow!("--views {text}: expected a..b, 0 <= a < b <= {total} (the scan's views)")
+    };
+    let (a, b) = text.split_once("..").ok_or_else(bad)?;
+    let a: usize = a.trim().parse().map_err(|_| bad())?;
+    let b: usize = b.trim().parse().map_err(|_| bad())?;
+    if a < b && b <= total {
+        Ok(a..b)
+    } else {
+        Err(bad())
+    }
 }
 
 /// Whether `path` names a `.hair` model (by its extension, in any case).

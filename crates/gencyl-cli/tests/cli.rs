@@ -1158,3 +1158,188 @@ fn bench_output_cut_short_is_not_a_crash() {
     assert!(!err.contains("panicked"), "{err}");
     assert!(out.status.success(), "{err}");
 }
+
+/// A small fiber bundle with a `[ct]` table.
+fn ct_scene(name: &str, ct: &str) -> PathBuf {
+    let src = format!(
+        "[material.fiber]\ntype = \"dielectric\"\nxray_mu = 2\n\
+         [[strand]]\npoints = [[0, 0, -1], [0, 0.02, 0], [0, 0, 1]]\nradius = [0.1, 0.1]\n\
+         ellipticity = 0.6\ntwist = [0, 3]\nmaterial = \"fiber\"\n\
+         [[strand]]\npoints = [[0.3, 0.1, -1], [0.32, 0.1, 0], [0.3, 0.12, 1]]\n\
+         radius = [0.08, 0.08]\nmaterial = \"fiber\"\n\
+         [[sphere]]\ncenter = [-0.3, 0, 0.1]\nradius = 0.1\n[ct]\n{ct}"
+    );
+    scratch(name, src.as_bytes())
+}
+
+fn tiff_pages(p: &Path) -> Vec<Vec<u32>> {
+    let (_, _, pages) = gencyl_render::formats::tiff::read_pages::<f32>(p).unwrap();
+    pages
+        .into_iter()
+        .map(|page| page.into_iter().map(f32::to_bits).collect())
+        .collect()
+}
+
+fn json(p: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
+}
+
+#[test]
+fn ct_views_split_concatenate_to_the_whole_bit_for_bit() {
+    let scene = ct_scene(
+        "ct-split.toml",
+        "beam = \"cone\"\ndetector = [24, 6]\npixel = [0.04, 0.2]\nviews = 7\n\
+         source_distance = 3\ndetector_distance = 1\nsamples = 4\nfocal_spot = 0.01\n",
+    );
+    let out = |name: &str| scratch(name, b"");
+    let (whole, a, b) = (out("ct-whole.tif"), out("ct-a.tif"), out("ct-b.tif"));
+    ok(
+        &[
+            "ct",
+            path(&scene),
+            "-o",
+            path(&whole),
+            "-q",
+            "--threads",
+            "2",
+        ],
+        None,
+    );
+    ok(
+        &[
+            "ct",
+            path(&scene),
+            "-o",
+            path(&a),
+            "-q",
+            "--views",
+            "0..3",
+            "--threads",
+            "1",
+        ],
+        None,
+    );
+    ok(
+        &["ct", path(&scene), "-o", path(&b), "-q", "--views", "3..7"],
+        None,
+    );
+    let pages = tiff_pages(&whole);
+    assert_eq!(pages.len(), 7);
+    let mut parts = tiff_pages(&a);
+    parts.extend(tiff_pages(&b));
+    assert!(parts == pages, "the parts' pages are the whole's");
+    assert!(
+        pages.iter().flatten().any(|&x| f32::from_bits(x) > 0.1),
+        "the fibers absorb"
+    );
+    // The sidecars: ASTRA's cone_vec, and each part's vectors are its views' of the whole.
+    let (jw, ja, jb) = (
+        json(&whole.with_extension("json")),
+        json(&a.with_extension("json")),
+        json(&b.with_extension("json")),
+    );
+    assert_eq!(jw["type"], "cone_vec");
+    assert_eq!(
+        (jw["rows"].as_u64(), jw["columns"].as_u64()),
+        (Some(6), Some(24))
+    );
+    assert_eq!(jw["quantity"], "absorbance");
+    let vectors = jw["vectors"].as_array().unwrap();
+    assert_eq!(vectors.len(), 7);
+    assert!(vectors.iter().all(|v| v.as_array().unwrap().len() == 12));
+    assert_eq!(ja["vectors"].as_array().unwrap()[..], vectors[..3]);
+    assert_eq!(jb["vectors"].as_array().unwrap()[..], vectors[3..]);
+    assert_eq!(jb["views"], serde_json::json!([3, 7]));
+}
+
+#[test]
+fn ct_quantity_and_material_from_the_command_line() {
+    let scene = ct_scene(
+        "ct-quantity.toml",
+        "detector = [16, 4]\npixel = [0.06, 0.3]\nviews = 3\n",
+    );
+    let run = |name: &str, extra: &[&str]| {
+        let out = scratch(name, b"");
+        let mut args = vec!["ct", path(&scene), "-o", path(&out), "-q"];
+        args.extend_from_slice(extra);
+        ok(&args, None);
+        let (_, _, pages) = gencyl_render::formats::tiff::read_pages::<f32>(&out).unwrap();
+        pages
+    };
+    let all = run("ct-len.tif", &["--quantity", "length"]);
+    let fiber = run(
+        "ct-fiber.tif",
+        &["--quantity", "length", "--material", "fiber"],
+    );
+    let absorbance = run("ct-abs.tif", &[]);
+    let transmission = run("ct-tr.tif", &["--quantity", "transmission"]);
+    let mut sphere_seen = false;
+    for k in 0..3 {
+        for i in 0..64 {
+            let (l, f) = (all[k][i] as f64, fiber[k][i] as f64);
+            // mu 2 for the fibers, 1 for the sphere (the built-in surface material).
+            let a = 2.0 * f + (l - f);
+            assert!(f <= l * (1.0 + 1e-6), "{f} <= {l}");
+            assert!(
+                (absorbance[k][i] as f64 - a).abs() <= 1e-5 * a + 1e-6,
+                "{} vs {a}",
+                absorbance[k][i]
+            );
+            let t = transmission[k][i] as f64;
+            assert!((t - (-(absorbance[k][i] as f64)).exp()).abs() < 1e-6, "{t}");
+            sphere_seen |= l - f > 0.01;
+        }
+    }
+    assert!(sphere_seen, "the sphere's path counts in the total");
+}
+
+#[test]
+fn ct_errors_are_clear_and_leave_nothing() {
+    let no_ct = scratch(
+        "ct-none.toml",
+        b"[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\n",
+    );
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests/ct-none.tif");
+    let _ = std::fs::remove_file(&out);
+    let run = |args: &[&str]| {
+        let o = gencyl(args, None);
+        assert!(!o.status.success(), "{args:?} must fail");
+        String::from_utf8(o.stderr).unwrap()
+    };
+    let e = run(&["ct", path(&no_ct), "-o", path(&out)]);
+    assert!(
+        e.contains("ct-none.toml: the scene has no [ct] table"),
+        "{e}"
+    );
+    assert!(!out.exists() && !out.with_extension("json").exists());
+    let scene = ct_scene(
+        "ct-err.toml",
+        "detector = [4, 4]\npixel = [0.1, 0.1]\nviews = 5\n",
+    );
+    for (views, _) in [("3..3", ()), ("0..6", ()), ("a..b", ()), ("4", ())] {
+        let e = run(&["ct", path(&scene), "-o", path(&out), "--views", views]);
+        assert!(
+            e.contains(&format!("--views {views}: expected a..b, 0 <= a < b <= 5")),
+            "{e}"
+        );
+    }
+    let e = run(&["ct", path(&scene), "-o", path(&out), "--material", "fiber"]);
+    assert!(
+        e.contains("--material applies to the length quantity only"),
+        "{e}"
+    );
+    let e = run(&[
+        "ct",
+        path(&scene),
+        "-o",
+        path(&out),
+        "--quantity",
+        "length",
+        "--material",
+        "x",
+    ]);
+    assert!(e.contains("--material: unknown material `x`"), "{e}");
+    let e = run(&["ct", path(&scene), "-o", "projections.png"]);
+    assert!(e.contains("the output must end in .tif or .tiff"), "{e}");
+    assert!(!out.exists());
+}

@@ -10,7 +10,6 @@
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Image, ImageAttributes, IntegerBounds, Layer,
@@ -455,34 +454,12 @@ fn file_err(path: &Path, problem: impl Into<String>) -> FilmError {
     FilmError::File(path.to_owned(), problem.into())
 }
 
-/// Runs `encode` into a fresh temp file beside `path`, ".<name>.<pid>-<n>.tmp", then renames it
-/// over `path`. The temp file is removed on any failure.
+/// [`super::write_atomic`] with the film's errors.
 fn write_atomic(
     path: &Path,
     encode: impl FnOnce(&mut BufWriter<File>) -> Result<(), FilmError>,
 ) -> Result<(), FilmError> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let io = |e: std::io::Error| FilmError::Io(path.into(), "write", e);
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp = path.with_file_name(format!(".{name}.{}-{n}.tmp", std::process::id()));
-    let file = File::options()
-        .write(true)
-        .create_new(true)
-        .open(&tmp)
-        .map_err(io)?;
-    let result = (|| {
-        let mut out = BufWriter::new(file);
-        encode(&mut out)?;
-        let file = out.into_inner().map_err(|e| io(e.into_error()))?;
-        file.sync_all().map_err(io)?;
-        drop(file);
-        std::fs::rename(&tmp, path).map_err(io)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    super::write_atomic(path, encode, |e| FilmError::Io(path.into(), "write", e))
 }
 
 #[cfg(test)]

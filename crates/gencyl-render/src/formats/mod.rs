@@ -5,7 +5,10 @@
 //!   section 3;
 //! - [`film`]: images of named `f32` channels over a window of a frame, PNG and EXR files, and
 //!   merging windows back into a frame;
+//! - [`tiff`]: multi-page TIFF stacks (CT projections, label volumes);
 //! - [`diagnostic`]: errors that point into a text file (`path:line:column: message`).
+//!
+//! Every file is written through [`write_atomic`]: complete or not at all.
 //!
 //! Imports: the geometry crate, and [`crate::accel`] for the hits a CSV row prints. A new file
 //! format goes here, as its own file.
@@ -14,6 +17,43 @@ pub mod diagnostic;
 pub mod film;
 pub mod hair;
 pub mod rays;
+pub mod tiff;
 
 pub use diagnostic::Diagnostic;
 pub use film::{Film, FilmError, Window};
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Runs `encode` into a fresh temp file beside `path`, ".<name>.<pid>-<n>.tmp", then renames it
+/// over `path`: the file is complete or absent, never half-written. The temp file is removed on
+/// any failure; `io` turns an I/O error into the caller's error.
+pub fn write_atomic<E>(
+    path: &Path,
+    encode: impl FnOnce(&mut BufWriter<File>) -> Result<(), E>,
+    io: impl Fn(std::io::Error) -> E,
+) -> Result<(), E> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let tmp = path.with_file_name(format!(".{name}.{}-{n}.tmp", std::process::id()));
+    let file = File::options()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .map_err(&io)?;
+    let result = (|| {
+        let mut out = BufWriter::new(file);
+        encode(&mut out)?;
+        let file = out.into_inner().map_err(|e| io(e.into_error()))?;
+        file.sync_all().map_err(&io)?;
+        drop(file);
+        std::fs::rename(&tmp, path).map_err(&io)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}

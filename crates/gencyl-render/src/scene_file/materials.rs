@@ -52,13 +52,13 @@ pub(super) struct RawMaterial {
     pub(super) beta_m: Option<Spanned<f64>>,
     pub(super) beta_n: Option<Spanned<f64>>,
     pub(super) alpha: Option<Spanned<f64>>,
-    pub(super) xray_mu: Option<Spanned<f64>>,
+    pub(super) xray_mu: Option<Spanned<Numbers>>,
 }
 
 pub(super) fn build_material(
     m: &RawMaterial,
     table: Range<usize>,
-) -> Result<(Material, f64), Problem> {
+) -> Result<(Material, Vec<f64>), Problem> {
     let kind = m.kind.get_ref().as_str();
     let roughness = |k: &Option<Spanned<f64>>, name: &str, default: f64| match k {
         Some(x) => number(x, name, 0.0, 1.0, true),
@@ -194,8 +194,24 @@ pub(super) fn build_material(
     };
     material.validate().map_err(|e| (table.clone(), e))?;
     let mu = match &m.xray_mu {
-        Some(x) => number(x, "xray_mu", 0.0, f64::INFINITY, false)?,
-        None => 1.0,
+        Some(x) => {
+            let values = &x.get_ref().0;
+            if values.is_empty() || values.len() > super::ct::MAX_BINS {
+                return Err((
+                    x.span(),
+                    format!(
+                        "xray_mu must be a number or 1 to {} numbers (one per spectrum bin), got {}",
+                        super::ct::MAX_BINS,
+                        values.len()
+                    ),
+                ));
+            }
+            for &mu in values {
+                check_number(mu, "xray_mu", 0.0, f64::MAX, false).map_err(|e| (x.span(), e))?;
+            }
+            values.clone()
+        }
+        None => vec![1.0],
     };
     Ok((material, mu))
 }
@@ -223,7 +239,7 @@ impl Materials {
                 list.push(SceneMaterial {
                     name: name.to_string(),
                     material: builtin_material(name).expect("a built-in name"),
-                    xray_mu: 1.0,
+                    xray_mu: vec![1.0],
                 });
             }
         }

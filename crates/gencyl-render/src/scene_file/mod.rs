@@ -77,6 +77,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 mod camera;
+pub mod ct;
 pub mod export;
 mod geometry;
 mod lights;
@@ -89,9 +90,11 @@ pub use materials::{FIBER_MATERIAL, SURFACE_MATERIAL};
 use crate::accel::{Plane, Scene, Sphere};
 use crate::formats::Diagnostic;
 use crate::optics::material::SceneMaterial;
+use crate::optics::scanner::CtSetup;
 use crate::optics::{Camera, Environment, Light};
 use crate::settings::RenderTable;
 use camera::{RawCamera, RawRender, build_camera, build_render};
+use ct::{RawCt, build_ct};
 use geometry::*;
 use lights::{RawEnvironment, RawLight, build_environment, build_light};
 use materials::{Materials, RawMaterial};
@@ -149,6 +152,8 @@ pub struct SceneDescription {
     pub camera: Option<Camera>,
     /// `[render]` settings.
     pub render: RenderTable,
+    /// The `[ct]` scan, if the scene has one.
+    pub ct: Option<CtSetup>,
 }
 
 // The file's shape, as serde reads it. `Spanned` keeps each value's place for the validation
@@ -173,6 +178,7 @@ struct RawScene {
     material: BTreeMap<String, Spanned<RawMaterial>>,
     camera: Option<Spanned<RawCamera>>,
     render: Option<Spanned<RawRender>>,
+    ct: Option<Spanned<RawCt>>,
 }
 
 impl SceneDescription {
@@ -325,6 +331,30 @@ fn build(raw: &RawScene, base: &Path) -> Result<SceneDescription, Problem> {
     }
     if let Some(r) = &raw.render {
         out.render = build_render(r.get_ref())?;
+    }
+    if let Some(c) = &raw.ct {
+        out.ct = Some(build_ct(c.get_ref(), c.span(), &materials)?);
+    }
+    let bins = out
+        .ct
+        .as_ref()
+        .and_then(|c| c.spectrum.as_ref())
+        .map_or(1, |s| s.weights.len());
+    for (name, m) in &raw.material {
+        if let Some(mu) = &m.get_ref().xray_mu {
+            let n = mu.get_ref().0.len();
+            if n != 1 && n != bins {
+                let why = if bins == 1 {
+                    "the scene has no [ct] spectrum: give one number".to_string()
+                } else {
+                    format!("the [ct] spectrum has {bins} bins: give one number or {bins}")
+                };
+                return Err((
+                    mu.span(),
+                    format!("xray_mu has {n} values but {why} (material `{name}`)"),
+                ));
+            }
+        }
     }
     out.materials = materials.list;
     Ok(out)

@@ -267,7 +267,7 @@ fn every_table_parses_and_transforms_apply() {
     assert_eq!(name(d.cylinder_materials[0]), "glass", "cylinder material");
     assert_eq!(name(d.cylinder_materials[3]), "kk", "strand material");
     let glass = &d.materials[d.cylinder_materials[0] as usize];
-    assert_eq!(glass.xray_mu, 2.5, "xray_mu");
+    assert_eq!(glass.xray_mu, vec![2.5], "xray_mu");
     assert_eq!(
         d.spheres[0].0.center,
         DVec3::new(0.0, -1.0, 1.0),

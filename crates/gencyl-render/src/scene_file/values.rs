@@ -73,6 +73,42 @@ impl<'de> Deserialize<'de> for Colour {
 }
 
 /// The value of a spanned array.
+/// A number or an array of numbers (`xray_mu = 2` or `xray_mu = [3, 2, 1.5]`).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Numbers(pub(super) Vec<f64>);
+
+impl<'de> Deserialize<'de> for Numbers {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Numbers;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "a number or an array of numbers")
+            }
+            fn visit_f64<E>(self, x: f64) -> Result<Numbers, E> {
+                Ok(Numbers(vec![x]))
+            }
+            fn visit_i64<E>(self, x: i64) -> Result<Numbers, E> {
+                Ok(Numbers(vec![x as f64]))
+            }
+            fn visit_u64<E>(self, x: u64) -> Result<Numbers, E> {
+                Ok(Numbers(vec![x as f64]))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Numbers, A::Error> {
+                let mut v = Vec::new();
+                while let Some(x) = seq.next_element()? {
+                    v.push(x);
+                }
+                Ok(Numbers(v))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
 pub(super) fn val<T: Copy, const N: usize>(s: &Spanned<Array<T, N>>) -> [T; N] {
     s.get_ref().0
 }

@@ -28,6 +28,7 @@ use crate::optics::light::Light;
 use crate::optics::material::{Bsdf, Material};
 use crate::sampling::{SampleRng, power_heuristic};
 pub use crate::settings::{Integrator, RenderSettings};
+use crate::transport::ct;
 use crate::transport::world::{Crossing, Surface, World, WorldHit};
 
 /// Offsets a ray's origin off the surface at `p` (normal `n`) to the side `dir` goes, by
@@ -42,9 +43,11 @@ fn spawn(p: DVec3, n: DVec3, dir: DVec3) -> Ray {
 /// Per-thread buffers.
 #[derive(Default)]
 pub struct Buffers {
-    scratch: Scratch,
-    hits: Vec<SceneHit>,
-    crossings: Vec<Crossing>,
+    pub(crate) scratch: Scratch,
+    pub(crate) hits: Vec<SceneHit>,
+    pub(crate) crossings: Vec<Crossing>,
+    /// Path length per material.
+    pub(crate) lengths: Vec<f64>,
 }
 
 /// One sample's contribution to a pixel, per channel of [`Integrator::channels`].
@@ -96,28 +99,18 @@ pub fn sample_ray(
     }
 }
 
-/// Path length through the solids along the ray (`t` in units of `|d|`), in total and
-/// weighted by each material's `mu`. For solids that do not overlap, `L_m = sum of exit t -
-/// sum of entry t` over the material's crossings: a ray that starts inside has one exit more
-/// than entries, which counts from `t = 0` (the origin). Crossings with `d . n = 0` exactly
-/// (tangent touches) carry no length.
+/// Path length through the solids along the ray (`t` in units of `|d|`) in total, and the
+/// absorbance `-ln(I/I0)` of the materials' attenuation along it (monochromatic: `sum mu_m
+/// L_m`; under a `[ct]` spectrum, of the weighted bins): [`ct::material_lengths`] and
+/// [`ct::Attenuation`].
 pub fn xray_length(world: &World, ray: &Ray, buf: &mut Buffers) -> (f64, f64) {
-    buf.crossings.clear();
-    world.crossings(
-        ray,
-        0.0,
-        &mut buf.crossings,
-        &mut buf.hits,
-        &mut buf.scratch,
-    );
-    let scale = ray.dir.length();
-    let (mut l, mut mu_l) = (0.0, 0.0);
-    for c in &buf.crossings {
-        let signed = if c.entering { -c.t } else { c.t } * scale;
-        l += signed;
-        mu_l += signed * world.materials[c.material as usize].xray_mu;
-    }
-    (l.max(0.0), mu_l.max(0.0))
+    let mut lengths = std::mem::take(&mut buf.lengths);
+    lengths.resize(world.materials.len(), 0.0);
+    ct::material_lengths(world, ray, buf, &mut lengths);
+    let total = lengths.iter().sum();
+    let absorbance = world.attenuation.absorbance(&lengths).max(0.0);
+    buf.lengths = lengths;
+    (total, absorbance)
 }
 
 /// Radiance along a camera ray, and whether it hit anything. `direct` stops after the first

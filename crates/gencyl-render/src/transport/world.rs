@@ -9,6 +9,7 @@ use crate::accel::{Scene, SceneHit, Scratch};
 use crate::optics::light::{Environment, Light};
 use crate::optics::material::{Material, SceneMaterial, ShadingPoint};
 use crate::scene_file::SceneDescription;
+use crate::transport::ct::Attenuation;
 
 /// What a ray hit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -73,6 +74,8 @@ pub struct World {
     pub lights: Vec<Light>,
     /// Environment light, if any.
     pub environment: Option<Environment>,
+    /// X-ray attenuation of the materials (under the `[ct]` spectrum, if any).
+    pub attenuation: Attenuation,
     /// Per material: whether it shades a fiber as a far-field scatterer (hair, Kajiya-Kay),
     /// whose solid rays pass through: only its entries are hits, never its exits.
     far_field: Vec<bool>,
@@ -86,8 +89,13 @@ impl World {
             .iter()
             .map(|m| matches!(m.material, Material::Hair(_) | Material::KajiyaKay { .. }))
             .collect();
+        let attenuation = Attenuation::new(
+            &desc.materials,
+            desc.ct.as_ref().and_then(|c| c.spectrum.as_ref()),
+        );
         World {
             far_field,
+            attenuation,
             scene: Scene::new(desc.cylinders),
             cylinder_materials: desc.cylinder_materials,
             spheres: desc.spheres,

@@ -95,9 +95,9 @@ pub struct SceneMaterial {
     pub name: String,
     /// The scattering model.
     pub material: Material,
-    /// X-ray attenuation coefficient `mu` per unit length (the `xray` integrator writes
-    /// `exp(-sum mu L)`).
-    pub xray_mu: f64,
+    /// X-ray linear attenuation coefficient `mu` per unit length: one value (every energy),
+    /// or one per bin of the `[ct]` spectrum.
+    pub xray_mu: Vec<f64>,
 }
 
 /// Where a ray met a surface, as shading needs it.
