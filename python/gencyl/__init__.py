@@ -12,7 +12,9 @@ rays and images come back as numpy arrays. Every result is the command line's
 >>> float(hits["t"][0]), int(hits["part"][0])
 (0.9, 0)
 
-``gencyl.dask`` spreads renders and ray batches over a Dask cluster.
+``gencyl.ct`` gives a scene's X-ray CT projections (its ``[ct]`` table) as a (views, rows,
+columns) array with the geometry in ASTRA's vector form. ``gencyl.dask`` spreads renders,
+ray batches and CT views over a Dask cluster.
 """
 
 from os import PathLike
@@ -20,9 +22,9 @@ from typing import Optional, Union
 
 import numpy as np
 
-from ._gencyl import Scene, __version__, render
+from ._gencyl import Scene, __version__, ct, render
 
-__all__ = ["Scene", "render", "xray", "__version__"]
+__all__ = ["Scene", "ct", "render", "xray", "__version__"]
 
 
 def xray(

@@ -1,7 +1,7 @@
 """Type stubs of the native module (``gencyl.Scene`` and ``gencyl.render`` come from here)."""
 
 from os import PathLike
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -55,6 +55,8 @@ class Scene:
         threads: Optional[int] = None,
     ) -> Dict[str, np.ndarray]:
         """Hits as arrays: ray, t, u, v, normal (H, 3), object, part."""
+    def ct_geometry(self) -> Dict[str, Any]:
+        """The [ct] scan's geometry (ASTRA vectors), as the sidecar of gencyl ct."""
     def xray(
         self,
         origins: npt.NDArray[np.float64],
@@ -75,3 +77,12 @@ def render(
     max_pixels: Optional[int] = None,
     radius: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.float32], List[str]]: ...
+
+def ct(
+    scene: Union[Scene, _Path],
+    views: Optional[Tuple[int, int]] = None,
+    quantity: Optional[str] = None,
+    material: Optional[str] = None,
+    threads: Optional[int] = None,
+) -> Tuple[npt.NDArray[np.float32], Dict[str, Any]]:
+    """CT projections (views, rows, columns) and the geometry (ASTRA vectors)."""

@@ -3,7 +3,8 @@
 A frame is split into crop windows, each rendered as a task on a worker and merged; because
 every pixel's samples depend only on its place in the full frame, the merged image equals a
 local render of the whole frame bit for bit, whatever the split, the workers or the retries.
-Ray batches are split into chunks the same way and come back in input order.
+Ray batches are split into chunks the same way and come back in input order; a CT scan's views
+are split into runs of views (as ``gencyl ct --views a..b``), concatenated in order.
 
 Workers load a scene once each: tasks name the scene by path, and each worker process keeps
 the scenes it has loaded (keyed by the file's path, size and modification time, so an edited
@@ -25,9 +26,10 @@ from typing import Any, Dict, List, Optional, Tuple
 import numpy as np
 
 from . import Scene
+from . import ct as _ct_local
 from . import render as _render_local
 
-__all__ = ["render", "submit_render", "raycast", "TiledRender", "tiles_of", "worker_loads"]
+__all__ = ["render", "submit_render", "raycast", "ct", "TiledRender", "tiles_of", "worker_loads"]
 
 _SCENES: Dict[Tuple[str, Optional[float], int, int], Scene] = {}
 _LOADS: Dict[str, int] = {}
@@ -194,3 +196,39 @@ def raycast(
     for s, part in zip(starts, parts):
         part["ray"] += s
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def _ct_views_task(path: str) -> int:
+    """On a worker: how many views the scene's scan has."""
+    return _scene(path).ct_geometry()["total_views"]
+
+
+def _ct_task(path, views, quantity, material, threads):
+    return _ct_local(_scene(path), views=views, quantity=quantity, material=material, threads=threads)
+
+
+def ct(
+    client,
+    scene_path,
+    chunk: int = 8,
+    quantity: Optional[str] = None,
+    material: Optional[str] = None,
+    threads: int = 1,
+) -> Tuple[np.ndarray, Dict[str, Any]]:
+    """:func:`gencyl.ct` of the scene file at ``scene_path`` on the cluster: its views in runs
+    of ``chunk``, projected as tasks, concatenated in order; equal to a local ``gencyl.ct`` bit
+    for bit (each view depends on nothing else). Returns ``(projections, geometry)`` with the
+    geometry of the whole scan."""
+    if chunk < 1:
+        raise ValueError(f"chunk must be at least 1, got {chunk}")
+    path = os.fspath(scene_path)
+    total = client.submit(_ct_views_task, path, pure=False).result()
+    runs = [(a, min(a + chunk, total)) for a in range(0, total, chunk)]
+    futures = [
+        client.submit(_ct_task, path, run, quantity, material, threads, pure=False) for run in runs
+    ]
+    parts = client.gather(futures)
+    geometry = dict(parts[0][1])
+    geometry["vectors"] = [v for _, g in parts for v in g["vectors"]]
+    geometry["views"] = [0, total]
+    return np.concatenate([p for p, _ in parts]), geometry

@@ -14,12 +14,14 @@ use gencyl_render::accel::{Scene as Cylinders, SceneHit};
 use gencyl_render::formats::Window;
 use gencyl_render::limits;
 use gencyl_render::optics::Camera;
+use gencyl_render::optics::scanner::{CtSetup, Quantity};
 use gencyl_render::raycast::{self, BLOCK, part_number, rays_from_arrays};
 use gencyl_render::scene_file::{
     FiberInput, Key, SceneDescription, SceneError, StrandInput, build_fiber, build_strand_from,
 };
 use gencyl_render::scenes::job::{self, PlanError, RenderRequest};
 use gencyl_render::settings::{Integrator, RenderTable};
+use gencyl_render::transport::ct::Projector;
 use gencyl_render::transport::{World, integrator};
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
@@ -37,6 +39,8 @@ struct PyScene {
     world: World,
     camera: Option<Camera>,
     table: RenderTable,
+    /// The `[ct]` scan, if the scene file has one.
+    ct: Option<CtSetup>,
     /// For messages: the file, or how the scene was made.
     name: String,
 }
@@ -267,13 +271,14 @@ impl PyScene {
                 Cylinders::MAX_CYLINDERS
             )));
         }
-        let (camera, table) = (desc.camera, desc.render);
+        let (camera, table, ct) = (desc.camera, desc.render, desc.ct.clone());
         let mut world = World::new(desc);
         job::light_if_unlit(&mut world);
         Ok(PyScene {
             world,
             camera,
             table,
+            ct,
             name,
         })
     }
@@ -469,6 +474,19 @@ impl PyScene {
             plan.camera.height,
             channel_names(plan.settings.integrator),
         ))
+    }
+
+    /// The geometry of the scene's `[ct]` scan, as `gencyl ct` writes it in the sidecar (ASTRA's
+    /// `type` and `vectors`, `rows`, `columns`, `quantity`, ...), without projecting.
+    fn ct_geometry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let setup = self.ct.as_ref().ok_or_else(|| {
+            PyValueError::new_err(format!("{}: the scene has no [ct] table", self.name))
+        })?;
+        let projector = Projector::new(&self.world, setup);
+        let all = 0..setup.scanner.views.len();
+        let text = serde_json::to_string(&projector.sidecar(all, &self.name))
+            .expect("JSON of plain values");
+        py.import("json")?.call_method1("loads", (text,))
     }
 
     fn __repr__(&self) -> String {
@@ -700,11 +718,100 @@ fn render<'py>(
     ))
 }
 
+/// X-ray CT projections of a scene with a `[ct]` table (a `Scene`, or the path of a scene
+/// file): `(projections, geometry)`, a float32 array (views, rows, columns) equal to the pages
+/// `gencyl ct` writes, bit for bit, and the sidecar's geometry as a dict (ASTRA's `type` and
+/// `vectors`, `rows`, `columns`, `quantity`, ...). `views = (a, b)` projects views a..b only
+/// (b excluded); `quantity` and `material` override the table's as `--quantity` and
+/// `--material` do. The GIL is released while projecting; Ctrl-C stops it between views.
+#[pyfunction]
+#[pyo3(signature = (scene, views = None, quantity = None, material = None, threads = None))]
+fn ct<'py>(
+    py: Python<'py>,
+    scene: &Bound<'py, PyAny>,
+    views: Option<(usize, usize)>,
+    quantity: Option<&str>,
+    material: Option<&str>,
+    threads: Option<usize>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let loaded;
+    let scene: &PyScene = match scene.cast::<PyScene>() {
+        Ok(s) => {
+            loaded = s.clone().unbind();
+            loaded.get()
+        }
+        Err(_) => {
+            let path: PathBuf = scene.extract().map_err(|_| {
+                PyTypeError::new_err("scene must be a gencyl.Scene or the path of a scene file")
+            })?;
+            loaded = Py::new(py, PyScene::load(py, path, None)?)?;
+            loaded.get()
+        }
+    };
+    let name = &scene.name;
+    let mut setup = scene
+        .ct
+        .clone()
+        .ok_or_else(|| PyValueError::new_err(format!("{name}: the scene has no [ct] table")))?;
+    if let Some(q) = quantity {
+        setup.quantity = q
+            .parse()
+            .map_err(|e: String| PyValueError::new_err(format!("quantity: {e}")))?;
+        if setup.quantity != Quantity::Length {
+            setup.material = None;
+        }
+    }
+    if let Some(m) = material {
+        if setup.quantity != Quantity::Length {
+            return Err(PyValueError::new_err(
+                "material applies to the length quantity only (absorbance and transmission sum every material)",
+            ));
+        }
+        let materials = &scene.world.materials;
+        let index = materials.iter().position(|x| x.name == m).ok_or_else(|| {
+            let known: Vec<&str> = materials.iter().map(|x| x.name.as_str()).collect();
+            PyValueError::new_err(format!(
+                "material: unknown material `{m}` (defined: {})",
+                known.join(", ")
+            ))
+        })?;
+        setup.material = Some(index as u32);
+    }
+    let total = setup.scanner.views.len();
+    let (a, b) = views.unwrap_or((0, total));
+    if !(a < b && b <= total) {
+        return Err(PyValueError::new_err(format!(
+            "views = ({a}, {b}): expected (a, b) with 0 <= a < b <= {total} (the scan's views)"
+        )));
+    }
+    let (rows, columns) = (setup.scanner.rows as usize, setup.scanner.columns as usize);
+    let bytes = (b - a) as u64 * (rows * columns) as u64 * 4;
+    if bytes > limits::MAX_PIXELS * 16 {
+        return Err(PyMemoryError::new_err(format!(
+            "{} views of {rows} x {columns} pixels take {bytes} bytes: project fewer views at a time (views=(a, b))",
+            b - a
+        )));
+    }
+    let pool = pool(threads)?;
+    let projector = Projector::new(&scene.world, &setup);
+    let mut data = vec![0.0f32; (b - a) * rows * columns];
+    for (k, page) in data.chunks_mut(rows * columns).enumerate() {
+        py.detach(|| on(&pool, || projector.project(a + k, page)));
+        py.check_signals()?;
+    }
+    let array = Array3::from_shape_vec((b - a, rows, columns), data)
+        .expect("a value per pixel of every view");
+    let text = serde_json::to_string(&projector.sidecar(a..b, name)).expect("JSON of plain values");
+    let geometry = py.import("json")?.call_method1("loads", (text,))?;
+    Ok((array.into_pyarray(py).into_any(), geometry))
+}
+
 /// The native module.
 #[pymodule]
 fn _gencyl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyScene>()?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
+    m.add_function(wrap_pyfunction!(ct, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -102,3 +102,20 @@ def test_a_killed_worker_changes_nothing(client):
     # The worker really died and was replaced.
     client.wait_for_workers(2, timeout=60)
     assert pids[victim] not in client.run(os.getpid).values()
+
+
+def test_ct_views_spread_over_workers_equal_a_local_scan(client, tmp_path):
+    path = tmp_path / "ct.toml"
+    path.write_text(
+        '[[strand]]\npoints = [[0, 0, -1], [0.05, 0, 0], [0, 0.05, 1]]\nradius = [0.1, 0.1]\n'
+        "ellipticity = 0.7\ntwist = [0, 2]\n"
+        '[[sphere]]\ncenter = [0.3, 0, 0]\nradius = 0.1\n'
+        '[ct]\nbeam = "cone"\ndetector = [20, 8]\npixel = [0.05, 0.2]\nviews = 11\n'
+        "source_distance = 3\ndetector_distance = 1\nsamples = 4\n"
+    )
+    local, geometry = gencyl.ct(str(path))
+    spread, g = gencyl.dask.ct(client, path, chunk=3)
+    assert spread.shape == (11, 8, 20)
+    assert np.array_equal(bits(spread), bits(local))
+    assert g["vectors"] == geometry["vectors"] and g["views"] == [0, 11]
+    assert local.max() > 0.1
