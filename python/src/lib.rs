@@ -611,6 +611,27 @@ impl PyScene {
     }
 }
 
+/// A `scene` argument: a `Scene`, or the path of a scene file or `.hair` model (loaded, with
+/// `radius` for a `.hair` model).
+fn scene_argument(
+    py: Python<'_>,
+    scene: &Bound<'_, PyAny>,
+    radius: Option<f64>,
+) -> PyResult<Py<PyScene>> {
+    match scene.cast::<PyScene>() {
+        Ok(_) if radius.is_some() => Err(PyValueError::new_err(
+            "radius applies when loading a .hair model by path, not to a Scene",
+        )),
+        Ok(s) => Ok(s.clone().unbind()),
+        Err(_) => {
+            let path: PathBuf = scene.extract().map_err(|_| {
+                PyTypeError::new_err("scene must be a gencyl.Scene or the path of a scene file")
+            })?;
+            Py::new(py, PyScene::load(py, path, radius)?)
+        }
+    }
+}
+
 /// Renders a scene (a `Scene`, or the path of a scene file or `.hair` model) to
 /// `(image, channels)`: a float32 array (H, W, C) of linear values and the channel names
 /// (`R, G, B, A`, plus `Z` for `depth` or `L` for `xray`). The pixels are those `gencyl
@@ -635,26 +656,8 @@ fn render<'py>(
     max_pixels: Option<u64>,
     radius: Option<f64>,
 ) -> PyResult<(Bound<'py, PyAny>, Vec<String>)> {
-    let loaded;
-    let scene: &PyScene = match scene.cast::<PyScene>() {
-        Ok(s) => {
-            if radius.is_some() {
-                return Err(PyValueError::new_err(
-                    "radius applies when loading a .hair model by path, not to a Scene",
-                ));
-            }
-            loaded = s.clone().unbind();
-            loaded.get()
-        }
-        Err(_) => {
-            let path: PathBuf = scene.extract().map_err(|_| {
-                PyTypeError::new_err("scene must be a gencyl.Scene or the path of a scene file")
-            })?;
-            let s = PyScene::load(py, path, radius)?;
-            loaded = Py::new(py, s)?;
-            loaded.get()
-        }
-    };
+    let loaded = scene_argument(py, scene, radius)?;
+    let scene: &PyScene = loaded.get();
     let request = RenderRequest {
         overrides: RenderTable {
             integrator: parse_integrator(integrator)?,
@@ -734,20 +737,8 @@ fn ct<'py>(
     material: Option<&str>,
     threads: Option<usize>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let loaded;
-    let scene: &PyScene = match scene.cast::<PyScene>() {
-        Ok(s) => {
-            loaded = s.clone().unbind();
-            loaded.get()
-        }
-        Err(_) => {
-            let path: PathBuf = scene.extract().map_err(|_| {
-                PyTypeError::new_err("scene must be a gencyl.Scene or the path of a scene file")
-            })?;
-            loaded = Py::new(py, PyScene::load(py, path, None)?)?;
-            loaded.get()
-        }
-    };
+    let loaded = scene_argument(py, scene, None)?;
+    let scene: &PyScene = loaded.get();
     let name = &scene.name;
     let mut setup = scene
         .ct

@@ -384,17 +384,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
         for w in job::warnings(&world, &camera, &name) {
             warn(w);
         }
-        let bar = if args.quiet {
-            ProgressBar::hidden()
-        } else {
-            ProgressBar::new(window.height() as u64)
-        };
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} {bar:40} {pos}/{len} rows, {elapsed} (ETA {eta})",
-            )
-            .expect("a valid template"),
-        );
+        let bar = progress_bar(args.quiet, window.height() as u64, "rows");
         let rendered = integrator::render(&world, &camera, &settings, window, &|done| {
             bar.set_position(done)
         });
@@ -466,17 +456,7 @@ fn ct_command(args: CtArgs) -> Result<()> {
         let world = World::new(desc);
         let t1 = Instant::now();
         let projector = Projector::new(&world, &setup);
-        let bar = if args.quiet {
-            ProgressBar::hidden()
-        } else {
-            ProgressBar::new(views.len() as u64)
-        };
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} {bar:40} {pos}/{len} views, {elapsed} (ETA {eta})",
-            )
-            .expect("a valid template"),
-        );
+        let bar = progress_bar(args.quiet, views.len() as u64, "views");
         let io = |e: std::io::Error| format!("{}: cannot write: {e}", args.output.display());
         gencyl_render::formats::write_atomic(
             &args.output,
@@ -527,6 +507,22 @@ fn parse_views(text: &str, total: usize) -> Result<std::ops::Range<usize>> {
     } else {
         Err(bad())
     }
+}
+
+/// A progress bar on standard error over `len` `units` with elapsed time and ETA (hidden when
+/// `quiet`).
+fn progress_bar(quiet: bool, len: u64, units: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template(&format!(
+            "{{spinner}} {{bar:40}} {{pos}}/{{len}} {units}, {{elapsed}} (ETA {{eta}})"
+        ))
+        .expect("a valid template"),
+    );
+    bar
 }
 
 /// Whether `path` names a `.hair` model (by its extension, in any case).
