@@ -22,9 +22,9 @@ from typing import Optional, Union
 
 import numpy as np
 
-from ._gencyl import Scene, __version__, ct, render
+from ._gencyl import Scene, __version__, ct, phantom, render
 
-__all__ = ["Scene", "ct", "render", "xray", "__version__"]
+__all__ = ["Scene", "ct", "phantom", "render", "xray", "__version__"]
 
 
 def xray(

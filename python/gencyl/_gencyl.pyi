@@ -55,6 +55,14 @@ class Scene:
         threads: Optional[int] = None,
     ) -> Dict[str, np.ndarray]:
         """Hits as arrays: ray, t, u, v, normal (H, 3), object, part."""
+    def labels(
+        self,
+        origin: Tuple[float, float, float],
+        voxel: float,
+        size: Tuple[int, int, int],
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.uint32]:
+        """Cylinder number + 1 at each voxel centre (0 outside), (nz, ny, nx)."""
     def ct_geometry(self) -> Dict[str, Any]:
         """The [ct] scan's geometry (ASTRA vectors), as the sidecar of gencyl ct."""
     def xray(
@@ -86,3 +94,6 @@ def ct(
     threads: Optional[int] = None,
 ) -> Tuple[npt.NDArray[np.float32], Dict[str, Any]]:
     """CT projections (views, rows, columns) and the geometry (ASTRA vectors)."""
+
+def phantom(kind: str, **spec: Any) -> Tuple[str, Dict[str, Any]]:
+    """A yarn or ply phantom: (scene TOML text, ground truth dict)."""

@@ -20,6 +20,7 @@ use gencyl_render::scene_file::{
     FiberInput, Key, SceneDescription, SceneError, StrandInput, build_fiber, build_strand_from,
 };
 use gencyl_render::scenes::job::{self, PlanError, RenderRequest};
+use gencyl_render::scenes::phantom as phantoms;
 use gencyl_render::settings::{Integrator, RenderTable};
 use gencyl_render::transport::ct::Projector;
 use gencyl_render::transport::{World, integrator};
@@ -489,6 +490,35 @@ impl PyScene {
         py.import("json")?.call_method1("loads", (text,))
     }
 
+    /// A label volume of the scene's cylinders on a grid of cubic voxels: a uint32 array
+    /// (nz, ny, nx), 0 where the voxel's centre lies in no cylinder, else the cylinder's number
+    /// plus one (the lowest where solids overlap), by the exact inside test. Voxel (i, j, k) is
+    /// centred at `origin + voxel * (i + 0.5, j + 0.5, k + 0.5)`; `size = (nx, ny, nz)`.
+    #[pyo3(signature = (origin, voxel, size, threads = None))]
+    fn labels<'py>(
+        &self,
+        py: Python<'py>,
+        origin: (f64, f64, f64),
+        voxel: f64,
+        size: (usize, usize, usize),
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let grid = phantoms::VoxelGrid {
+            origin: [origin.0, origin.1, origin.2],
+            voxel,
+            size: [size.0, size.1, size.2],
+        };
+        let cylinders = self.world.scene.cylinders();
+        let numbers: Vec<u32> = (0..cylinders.len() as u32).collect();
+        let pool = pool(threads)?;
+        let labels = py
+            .detach(|| on(&pool, || phantoms::label_volume(cylinders, &numbers, grid)))
+            .map_err(PyValueError::new_err)?;
+        let array =
+            Array3::from_shape_vec((size.2, size.1, size.0), labels).expect("a label per voxel");
+        Ok(array.into_pyarray(py).into_any())
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "<gencyl.Scene {}: {} cylinders>",
@@ -797,12 +827,54 @@ fn ct<'py>(
     Ok((array.into_pyarray(py).into_any(), geometry))
 }
 
+/// A CT phantom with its exact ground truth, as `gencyl generate yarn|ply` makes it:
+/// `(scene_toml, truth)`, the scene file's text (strands, a material, a camera and a `[ct]`
+/// table) and the truth as a dict (fiber count, per-fiber volume, direction and radii, the
+/// envelope and the fiber volume fraction computed from the geometry). `kind` is `"yarn"` or
+/// `"ply"`; the keywords are the fields of the Rust `YarnSpec` / `PlySpec` (`fibers`, `length`,
+/// `twist_deg`, `packing`, `radius`, `radius_sd`, `aspect`, `aspect_sd`, `section_twist`,
+/// `migration`, `migration_period`, `segments`, `seed`, `material`; for a ply `width`,
+/// `thickness`, `waviness`, `waviness_period`), the rest at their defaults.
+#[pyfunction]
+#[pyo3(signature = (kind, **spec))]
+fn phantom<'py>(
+    py: Python<'py>,
+    kind: &str,
+    spec: Option<&Bound<'py, PyDict>>,
+) -> PyResult<(String, Bound<'py, PyAny>)> {
+    let json = py.import("json")?;
+    let text: String = match spec {
+        Some(d) => json.call_method1("dumps", (d,))?.extract()?,
+        None => "{}".into(),
+    };
+    let bad = |e: serde_json::Error| PyValueError::new_err(format!("{kind}: {e}"));
+    let made = match kind {
+        "yarn" => {
+            let spec: phantoms::YarnSpec = serde_json::from_str(&text).map_err(bad)?;
+            py.detach(|| phantoms::generate_yarn(&spec))
+        }
+        "ply" => {
+            let spec: phantoms::PlySpec = serde_json::from_str(&text).map_err(bad)?;
+            py.detach(|| phantoms::generate_ply(&spec))
+        }
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "unknown phantom `{other}`: expected \"yarn\" or \"ply\""
+            )));
+        }
+    }
+    .map_err(PyValueError::new_err)?;
+    let truth = json.call_method1("loads", (made.truth.to_json(),))?;
+    Ok((made.scene_toml, truth))
+}
+
 /// The native module.
 #[pymodule]
 fn _gencyl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyScene>()?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(ct, m)?)?;
+    m.add_function(wrap_pyfunction!(phantom, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

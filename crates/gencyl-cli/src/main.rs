@@ -18,7 +18,7 @@ use gencyl_render::optics::scanner::Quantity;
 use gencyl_render::raycast::{self, RaycastOptions};
 use gencyl_render::scene_file::{SceneDescription, SceneError};
 use gencyl_render::scenes::job::{self, PlanError, RenderJob, RenderRequest};
-use gencyl_render::scenes::{builtin, synth};
+use gencyl_render::scenes::{builtin, phantom, synth};
 use gencyl_render::settings::{Integrator, RenderTable};
 use gencyl_render::transport::ct::Projector;
 use gencyl_render::transport::{World, integrator};
@@ -43,7 +43,8 @@ enum Command {
     /// Merge windows rendered with `--crop` into the full frame (bit-identical to rendering
     /// it whole).
     Merge(MergeArgs),
-    /// Write a generated hair model (a head of wavy strands) as a `.hair` file.
+    /// Write a generated hair model (a head of wavy strands) as a `.hair` file, or (`generate
+    /// yarn`, `generate ply`) a CT phantom: a scene of fibers with its exact ground truth.
     Generate(GenerateArgs),
     /// Time named scenes: load, BVH build, memory per segment, camera rays per second.
     Bench(BenchArgs),
@@ -156,7 +157,117 @@ struct MergeArgs {
 }
 
 #[derive(Debug, clap::Args)]
+#[command(args_conflicts_with_subcommands = true)]
 struct GenerateArgs {
+    #[command(subcommand)]
+    kind: Option<GenerateKind>,
+    #[command(flatten)]
+    hair: HairArgs,
+}
+
+#[derive(Debug, Subcommand)]
+enum GenerateKind {
+    /// A head of wavy strands as a `.hair` file (the default).
+    Hair(HairArgs),
+    /// A twisted yarn of elliptical fibers along z (a CT phantom): the scene (with a `[ct]`
+    /// table), its ground truth as JSON and, with `--labels`, a voxel label volume.
+    Yarn(YarnArgs),
+    /// A unidirectional composite ply of fibers along x (a CT phantom), as `yarn` writes it.
+    Ply(PlyArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct PhantomOutput {
+    /// The scene file to write; the truth goes beside it as STEM.truth.json.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Also write the label volume (0 background, fiber number + 1 inside, by the exact inside
+    /// test at voxel centres) at this voxel size, as STEM.labels.tif (one uint32 page per z
+    /// slice); its grid goes into the truth.
+    #[arg(long)]
+    labels: Option<f64>,
+    /// Fiber radius sd, relative (default 0.1).
+    #[arg(long)]
+    radius_sd: Option<f64>,
+    /// Mean minor/major radius (1 = round).
+    #[arg(long)]
+    aspect: Option<f64>,
+    /// Relative sd of the aspect.
+    #[arg(long)]
+    aspect_sd: Option<f64>,
+    /// Bezier segments per fiber (default: the fewest that follow the fiber's path).
+    #[arg(long)]
+    segments: Option<usize>,
+    /// Seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// The fibers' material name.
+    #[arg(long)]
+    material: Option<String>,
+}
+
+#[derive(Debug, clap::Args)]
+struct YarnArgs {
+    /// Number of fibers (default 100).
+    #[arg(long)]
+    fibers: Option<usize>,
+    /// Yarn length along z (default 1).
+    #[arg(long)]
+    length: Option<f64>,
+    /// Helix angle at the yarn surface, degrees (default 20).
+    #[arg(long, allow_negative_numbers = true)]
+    twist: Option<f64>,
+    /// Fiber volume fraction of the yarn's envelope cylinder (default 0.5).
+    #[arg(long)]
+    packing: Option<f64>,
+    /// Mean fiber major radius (default 0.01).
+    #[arg(long)]
+    radius: Option<f64>,
+    /// Turn of each fiber's section about its own axis over its length, radians.
+    #[arg(long)]
+    section_twist: Option<f64>,
+    /// Radial migration amplitude, a fraction of the yarn radius (0 to 0.25).
+    #[arg(long)]
+    migration: Option<f64>,
+    /// Migration period along z.
+    #[arg(long)]
+    migration_period: Option<f64>,
+    #[command(flatten)]
+    common: PhantomOutput,
+}
+
+#[derive(Debug, clap::Args)]
+struct PlyArgs {
+    /// Number of fibers (give this or --packing).
+    #[arg(long)]
+    fibers: Option<usize>,
+    /// Ply length along x (default 1).
+    #[arg(long)]
+    length: Option<f64>,
+    /// Width along y (default 0.4).
+    #[arg(long)]
+    width: Option<f64>,
+    /// Thickness along z (default 0.1).
+    #[arg(long)]
+    thickness: Option<f64>,
+    /// Fiber volume fraction of the box (default 0.55 when --fibers is not given).
+    #[arg(long)]
+    packing: Option<f64>,
+    /// Mean fiber major radius (default 0.005).
+    #[arg(long)]
+    radius: Option<f64>,
+    /// Waviness amplitude, a fraction of the mean radius (default 0: straight).
+    #[arg(long)]
+    waviness: Option<f64>,
+    /// Wavelength of the waviness along x.
+    #[arg(long)]
+    waviness_period: Option<f64>,
+    #[command(flatten)]
+    common: PhantomOutput,
+}
+
+#[derive(Debug, clap::Args)]
+struct HairArgs {
     /// The hair file to write.
     #[arg(short, long, default_value = "generated.hair")]
     output: PathBuf,
@@ -559,6 +670,128 @@ fn merge_command(args: MergeArgs) -> Result<()> {
 }
 
 fn generate_command(args: GenerateArgs) -> Result<()> {
+    match args.kind {
+        None => generate_hair(args.hair),
+        Some(GenerateKind::Hair(hair)) => generate_hair(hair),
+        Some(GenerateKind::Yarn(y)) => {
+            let mut spec = phantom::YarnSpec::default();
+            set(&mut spec.fibers, y.fibers);
+            set(&mut spec.length, y.length);
+            set(&mut spec.twist_deg, y.twist);
+            set(&mut spec.packing, y.packing);
+            set(&mut spec.radius, y.radius);
+            set(&mut spec.section_twist, y.section_twist);
+            set(&mut spec.migration, y.migration);
+            set(&mut spec.migration_period, y.migration_period);
+            let c = &y.common;
+            set(&mut spec.radius_sd, c.radius_sd);
+            set(&mut spec.aspect, c.aspect);
+            set(&mut spec.aspect_sd, c.aspect_sd);
+            set(&mut spec.segments, c.segments);
+            set(&mut spec.seed, c.seed);
+            set(&mut spec.material, c.material.clone());
+            write_phantom(&y.common, "yarn.toml", || phantom::generate_yarn(&spec))
+        }
+        Some(GenerateKind::Ply(p)) => {
+            let mut spec = phantom::PlySpec::default();
+            if p.fibers.is_some() {
+                spec.packing = 0.0;
+            }
+            set(&mut spec.fibers, p.fibers);
+            set(&mut spec.length, p.length);
+            set(&mut spec.width, p.width);
+            set(&mut spec.thickness, p.thickness);
+            set(&mut spec.packing, p.packing);
+            set(&mut spec.radius, p.radius);
+            set(&mut spec.waviness, p.waviness);
+            set(&mut spec.waviness_period, p.waviness_period);
+            let c = &p.common;
+            set(&mut spec.radius_sd, c.radius_sd);
+            set(&mut spec.aspect, c.aspect);
+            set(&mut spec.aspect_sd, c.aspect_sd);
+            set(&mut spec.segments, c.segments);
+            set(&mut spec.seed, c.seed);
+            set(&mut spec.material, c.material.clone());
+            write_phantom(&p.common, "ply.toml", || phantom::generate_ply(&spec))
+        }
+    }
+}
+
+/// Overrides a default with an option given on the command line.
+fn set<T>(field: &mut T, value: Option<T>) {
+    if let Some(v) = value {
+        *field = v;
+    }
+}
+
+/// Generates a phantom and writes its scene, its truth (STEM.truth.json) and, if asked, its
+/// label volume (STEM.labels.tif); nothing is written unless the phantom is made.
+fn write_phantom(
+    out: &PhantomOutput,
+    default: &str,
+    generate: impl FnOnce() -> Result<phantom::Phantom, String>,
+) -> Result<()> {
+    let t0 = Instant::now();
+    let scene_path = out.output.clone().unwrap_or_else(|| PathBuf::from(default));
+    check_output(&scene_path, &["toml"])?;
+    let stem = scene_path.with_extension("");
+    let sibling = |suffix: &str| PathBuf::from(format!("{}.{suffix}", stem.display()));
+    let (truth_path, labels_path) = (sibling("truth.json"), sibling("labels.tif"));
+    if let Some(v) = out.labels
+        && !(v > 0.0 && v.is_finite())
+    {
+        bail!("--labels: the voxel size must be positive and finite, got {v}");
+    }
+    let made = generate().map_err(anyhow::Error::msg)?;
+    let mut truth: serde_json::Value =
+        serde_json::from_str(&made.truth.to_json()).context("the truth as JSON")?;
+    let labels = match out.labels {
+        Some(voxel) => {
+            let grid = made
+                .truth
+                .grid(voxel)
+                .map_err(|e| anyhow::anyhow!("--labels {voxel}: {e}"))?;
+            let desc =
+                SceneDescription::parse(&made.scene_toml, &scene_path.display().to_string())?;
+            let labels = phantom::label_volume(&desc.cylinders, &made.fiber_of_cylinder(), grid)
+                .map_err(|e| anyhow::anyhow!("--labels {voxel}: {e}"))?;
+            truth["labels"] = serde_json::json!({
+                "file": labels_path.file_name().map(|n| n.to_string_lossy().into_owned()),
+                "origin": grid.origin,
+                "voxel": grid.voxel,
+                "size": grid.size,
+                "layout": "page k is the z slice at origin.z + (k + 0.5) voxel; row j, column i the voxel centred at origin + (i + 0.5, j + 0.5, k + 0.5) voxel; 0 background, fiber label (index + 1) inside",
+            });
+            Some((grid, labels))
+        }
+        None => None,
+    };
+    write_atomically(&scene_path, made.scene_toml.as_bytes())?;
+    let text = serde_json::to_string_pretty(&truth).context("the truth as JSON")?;
+    write_atomically(&truth_path, text.as_bytes())?;
+    if let Some((grid, labels)) = &labels {
+        phantom::write_labels_tiff(&labels_path, labels, *grid).map_err(anyhow::Error::msg)?;
+    }
+    let t = &made.truth;
+    eprintln!(
+        "{}: {} fibers, fiber volume fraction {:.6} (of the envelope, exact from the geometry); truth in {}{}; {:.2} s",
+        scene_path.display(),
+        t.fiber_count,
+        t.fiber_volume_fraction,
+        truth_path.display(),
+        labels.as_ref().map_or(String::new(), |(g, _)| format!(
+            ", labels ({} x {} x {}) in {}",
+            g.size[0],
+            g.size[1],
+            g.size[2],
+            labels_path.display()
+        )),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn generate_hair(args: HairArgs) -> Result<()> {
     let t0 = Instant::now();
     check_output(&args.output, &["hair"])?;
     let points = args.strands as u64 * (args.segments as u64 + 1);

@@ -1343,3 +1343,105 @@ fn ct_errors_are_clear_and_leave_nothing() {
     assert!(e.contains("the output must end in .tif or .tiff"), "{e}");
     assert!(!out.exists());
 }
+
+#[test]
+fn generate_yarn_writes_scene_truth_and_labels_and_ct_runs_on_it() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests/yarn");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("y.toml");
+    let err = ok(
+        &[
+            "generate",
+            "yarn",
+            "--fibers",
+            "20",
+            "--radius",
+            "0.02",
+            "--packing",
+            "0.4",
+            "--aspect",
+            "0.8",
+            "--twist",
+            "15",
+            "-o",
+            path(&scene),
+            "--labels",
+            "0.01",
+        ],
+        None,
+    );
+    assert!(err.is_empty());
+    let truth = json(&dir.join("y.truth.json"));
+    assert_eq!(truth["fiber_count"], 20);
+    let fraction = truth["fiber_volume_fraction"].as_f64().unwrap();
+    assert!((fraction - 0.4).abs() < 1e-6, "{fraction}");
+    let size: Vec<u64> = truth["labels"]["size"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_u64().unwrap())
+        .collect();
+    let (w, h, pages) =
+        gencyl_render::formats::tiff::read_pages::<u32>(&dir.join("y.labels.tif")).unwrap();
+    assert_eq!(
+        [w as u64, h as u64, pages.len() as u64],
+        [size[0], size[1], size[2]]
+    );
+    let labelled: std::collections::BTreeSet<u32> = pages.iter().flatten().copied().collect();
+    assert_eq!(labelled.len(), 21, "background and the 20 fibers");
+    // The scene carries a [ct] table: a few of its views project.
+    let out = dir.join("p.tif");
+    ok(
+        &[
+            "ct",
+            path(&scene),
+            "-o",
+            path(&out),
+            "--views",
+            "0..2",
+            "-q",
+        ],
+        None,
+    );
+    assert_eq!(tiff_pages(&out).len(), 2);
+    // An impossible packing: an error, and nothing written.
+    let bad = dir.join("bad.toml");
+    let o = gencyl(
+        &["generate", "yarn", "--packing", "0.95", "-o", path(&bad)],
+        None,
+    );
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("packing 0.9500 is not reachable"), "{e}");
+    assert!(!bad.exists() && !dir.join("bad.truth.json").exists());
+    let o = gencyl(
+        &[
+            "generate",
+            "ply",
+            "--fibers",
+            "10",
+            "--labels",
+            "nan",
+            "-o",
+            path(&bad),
+        ],
+        None,
+    );
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--labels"));
+    // The hair generator keeps its command line.
+    let hair = dir.join("h.hair");
+    ok(
+        &[
+            "generate",
+            "--strands",
+            "3",
+            "--segments",
+            "2",
+            "-o",
+            path(&hair),
+        ],
+        None,
+    );
+    assert!(hair.exists());
+}

@@ -1,6 +1,6 @@
-//! Multi-page TIFF stacks: one grayscale page per view (CT projections, `float32`) or per
-//! slice (label volumes, `uint32`), uncompressed, written page by page so that a stack never
-//! needs to be in memory whole. A stack of more than 4 GiB less 16 MiB of pixels is written as
+//! Multi-page TIFF stacks: one grayscale page per view (CT projections, `float32`,
+//! uncompressed) or per slice (label volumes, `uint32`, Deflate), written page by page so that
+//! a stack never needs to be in memory whole. A stack of more than 4 GiB less 16 MiB of pixels is written as
 //! BigTIFF (the classic format's offsets are 32-bit), which tifffile, ImageJ/Fiji and libtiff
 //! read.
 
@@ -10,7 +10,7 @@ use std::path::Path;
 use tiff::TiffResult;
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::encoder::colortype::{ColorType, Gray32, Gray32Float};
-use tiff::encoder::{TiffEncoder, TiffKind, TiffValue};
+use tiff::encoder::{Compression, DeflateLevel, TiffEncoder, TiffKind, TiffValue};
 
 /// Past this many pixel bytes a stack is BigTIFF.
 const CLASSIC_LIMIT: u64 = (1 << 32) - (16 << 20);
@@ -27,12 +27,14 @@ impl Pixel for u32 {
     type Color = Gray32;
 }
 
-/// Writes `pages` pages of `width x height` pixels to `out`; `page(k, pixels)` fills page `k`
-/// (row after row; it may fail, which ends the stack with its message).
+/// Writes `pages` pages of `width x height` pixels to `out`, Deflate-compressed if `deflate`;
+/// `page(k, pixels)` fills page `k` (row after row; it may fail, which ends the stack with its
+/// message).
 pub fn write_pages<P: Pixel, W: Write + Seek>(
     out: &mut W,
     (width, height): (u32, u32),
     pages: usize,
+    deflate: bool,
     mut page: impl FnMut(usize, &mut [P]) -> Result<(), String>,
 ) -> Result<(), String>
 where
@@ -40,11 +42,21 @@ where
 {
     let bytes = u64::from(width) * u64::from(height) * pages as u64 * size_of::<P>() as u64;
     let tiff = |e: tiff::TiffError| format!("cannot write the TIFF: {e}");
+    let compression = if deflate {
+        Compression::Deflate(DeflateLevel::Fast)
+    } else {
+        Compression::Uncompressed
+    };
+    // Compressed pages can only be smaller: the raw size decides.
     if bytes > CLASSIC_LIMIT {
-        let mut encoder = TiffEncoder::new_big(out).map_err(tiff)?;
+        let mut encoder = TiffEncoder::new_big(out)
+            .map_err(tiff)?
+            .with_compression(compression);
         pages_into(&mut encoder, (width, height), pages, &mut page)
     } else {
-        let mut encoder = TiffEncoder::new(out).map_err(tiff)?;
+        let mut encoder = TiffEncoder::new(out)
+            .map_err(tiff)?
+            .with_compression(compression);
         pages_into(&mut encoder, (width, height), pages, &mut page)
     }
 }
@@ -133,7 +145,7 @@ mod tests {
             Ok(())
         };
         let mut file = std::fs::File::create(&path).unwrap();
-        write_pages::<f32, _>(&mut file, (5, 3), 4, page).unwrap();
+        write_pages::<f32, _>(&mut file, (5, 3), 4, false, page).unwrap();
         drop(file);
         let (w, h, pages) = read_pages::<f32>(&path).unwrap();
         assert_eq!((w, h, pages.len()), (5, 3, 4));
@@ -156,7 +168,7 @@ mod tests {
     #[test]
     fn a_failing_page_ends_the_stack_with_its_message() {
         let mut buf = std::io::Cursor::new(Vec::new());
-        let err = write_pages::<u32, _>(&mut buf, (2, 2), 3, |k, _| {
+        let err = write_pages::<u32, _>(&mut buf, (2, 2), 3, true, |k, _| {
             if k == 1 {
                 Err("view 1 failed".into())
             } else {

@@ -250,6 +250,7 @@ impl Projector<'_> {
             out,
             (s.columns, s.rows),
             views.len(),
+            false,
             |k, page| {
                 self.project(views.start + k, page);
                 progress(k + 1);
