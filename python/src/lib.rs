@@ -807,12 +807,13 @@ fn ct<'py>(
     }
     let (rows, columns) = (setup.scanner.rows as usize, setup.scanner.columns as usize);
     let bytes = (b - a) as u64 * (rows * columns) as u64 * 4;
-    if bytes > limits::MAX_PIXELS * 16 {
-        return Err(PyMemoryError::new_err(format!(
-            "{} views of {rows} x {columns} pixels take {bytes} bytes: project fewer views at a time (views=(a, b))",
-            b - a
-        )));
-    }
+    limits::check_memory(
+        bytes,
+        &format!("{} views of {rows} x {columns} pixels", b - a),
+    )
+    .map_err(|m| {
+        PyMemoryError::new_err(format!("{m}: project fewer views at a time (views=(a, b))"))
+    })?;
     let pool = pool(threads)?;
     let projector = Projector::new(&scene.world, &setup);
     let mut data = vec![0.0f32; (b - a) * rows * columns];
