@@ -12,6 +12,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use gencyl_render::accel::{Scene, Scratch};
+use gencyl_render::formats::plot;
 use gencyl_render::formats::{Film, Window, hair};
 use gencyl_render::limits;
 use gencyl_render::optics::scanner::Quantity;
@@ -21,6 +22,7 @@ use gencyl_render::scenes::job::{self, PlanError, RenderJob, RenderRequest};
 use gencyl_render::scenes::{builtin, phantom, synth};
 use gencyl_render::settings::{Integrator, RenderTable};
 use gencyl_render::transport::ct::Projector;
+use gencyl_render::transport::scatter::{FiberSection, Goniometer};
 use gencyl_render::transport::{World, integrator};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -55,6 +57,60 @@ enum Command {
     /// X-ray CT projections of a scene with a `[ct]` table: a multi-page float32 TIFF (one
     /// page per view) and a JSON sidecar with the geometry as ASTRA vectors.
     Ct(CtArgs),
+    /// A virtual goniometer: how one fiber (circular, elliptical or profiled, a dielectric
+    /// solid) scatters light, by path order, as CSV (`order,theta_deg,phi_deg,value`).
+    Scatter(ScatterArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct ScatterArgs {
+    /// Minor / major radius of an elliptical section (1 = circle).
+    #[arg(long, default_value_t = 1.0)]
+    aspect: f64,
+    /// A TOML file with `profile = [[x, y], ...]` (a Bezier loop, as the scene's `profile` key):
+    /// the section instead of an ellipse.
+    #[arg(long)]
+    profile: Option<PathBuf>,
+    /// Angle from the incident direction's projection onto the normal plane (toward the light)
+    /// to the section's major axis, counterclockwise about the tangent, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    rotation: f64,
+    /// Relative index of refraction.
+    #[arg(long, default_value_t = 1.55)]
+    eta: f64,
+    /// Absorption per unit length inside, the section's bounding radius being 1.
+    #[arg(long, default_value_t = 0.0)]
+    sigma_a: f64,
+    /// Cuticle tilt of the normal toward the tip, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    tilt: f64,
+    /// Incident longitudinal angle (from the normal plane toward the tip), degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    theta_i: f64,
+    /// Incident azimuth, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    phi_i: f64,
+    /// Rays across the fiber.
+    #[arg(long, default_value_t = 1_000_000)]
+    rays: usize,
+    /// Orders binned apart (0 = R, 1 = TT, 2 = TRT, ...); the last holds all higher ones.
+    #[arg(long, default_value_t = 3)]
+    max_order: usize,
+    /// Bins over theta_o (-90..90) and over phi (-180..180).
+    #[arg(long, default_value_t = 90)]
+    bins: usize,
+    /// Seed of the rays' jitter.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// The table.
+    #[arg(short, long, default_value = "scatter.csv")]
+    output: PathBuf,
+    /// Also plot N_p(phi) (each order's power per phi bin) as PNG.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -372,6 +428,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bench(args) => bench_command(args),
         Command::Export(args) => export_command(args),
         Command::Ct(args) => ct_command(args),
+        Command::Scatter(args) => scatter_command(args),
     };
     let exhausted = gencyl::budget::exhausted_searches();
     if exhausted > 0 {
@@ -603,6 +660,97 @@ fn ct_command(args: CtArgs) -> Result<()> {
         );
         Ok(())
     })
+}
+
+fn scatter_command(args: ScatterArgs) -> Result<()> {
+    let pool = thread_pool(args.threads)?;
+    check_output(&args.output, &["csv"])?;
+    if let Some(p) = &args.plot {
+        check_output(p, &["png"])?;
+    }
+    let section = match &args.profile {
+        None => FiberSection::Ellipse {
+            aspect: args.aspect,
+        },
+        Some(path) => {
+            #[derive(serde::Deserialize)]
+            #[serde(deny_unknown_fields)]
+            struct ProfileFile {
+                profile: Vec<[f64; 2]>,
+            }
+            let name = path.display();
+            let bytes = limits::read_file(path, limits::MAX_SCENE_FILE, "profile file")
+                .map_err(|e| anyhow::anyhow!("{name}: cannot read: {e}"))?;
+            let text = std::str::from_utf8(&bytes)
+                .map_err(|_| anyhow::anyhow!("{name}: not UTF-8 text"))?;
+            let file: ProfileFile =
+                toml::from_str(text).map_err(|e| anyhow::anyhow!("{name}: {}", e.message()))?;
+            FiberSection::Profile(
+                file.profile
+                    .iter()
+                    .map(|p| glam::DVec2::from_array(*p))
+                    .collect(),
+            )
+        }
+    };
+    let g = Goniometer {
+        section,
+        rotation: args.rotation.to_radians(),
+        eta: args.eta,
+        sigma_a: args.sigma_a,
+        tilt: args.tilt.to_radians(),
+        theta_i: args.theta_i.to_radians(),
+        phi_i: args.phi_i.to_radians(),
+        rays: args.rays,
+        max_order: args.max_order,
+        bins: args.bins,
+        seed: args.seed,
+    };
+    g.validate().map_err(anyhow::Error::msg)?;
+    let t0 = Instant::now();
+    let s = pool.install(|| g.measure()).map_err(anyhow::Error::msg)?;
+    let seconds = t0.elapsed().as_secs_f64();
+    write_atomically(&args.output, s.csv().as_bytes())?;
+    let names = ["R", "TT", "TRT"];
+    let label = |p: usize| match names.get(p) {
+        Some(n) if p + 1 < s.orders => n.to_string(),
+        _ if p + 1 == s.orders => format!("p>={p}"),
+        _ => format!("p={p}"),
+    };
+    if let Some(plot) = &args.plot {
+        let colours = [[220, 40, 40], [40, 160, 40], [40, 80, 220], [150, 150, 150]];
+        let curves: Vec<Vec<f64>> = (0..s.orders).map(|p| s.azimuthal(p)).collect();
+        let drawn: Vec<plot::Curve> = curves
+            .iter()
+            .enumerate()
+            .map(|(p, y)| plot::Curve {
+                y,
+                colour: colours[p.min(3)],
+            })
+            .collect();
+        plot::write_line_plot(plot, &drawn, (-180.0, 180.0), &[-90.0, 0.0, 90.0])
+            .map_err(anyhow::Error::msg)?;
+        eprintln!(
+            "{}: power per phi bin, -180 to 180 degrees (grid at -90, 0, 90); red R, green TT, blue TRT, grey higher orders",
+            plot.display()
+        );
+    }
+    let per_order: Vec<String> = (0..s.orders)
+        .map(|p| format!("{} {:.6}", label(p), s.azimuthal(p).iter().sum::<f64>()))
+        .collect();
+    eprintln!(
+        "{}: {} rays ({} met the fiber) in {:.2} s ({:.0} rays/s); out {:.6} ({}), absorbed {:.6}, lost {:.2e}",
+        args.output.display(),
+        args.rays,
+        s.hits,
+        seconds,
+        args.rays as f64 / seconds.max(1e-9),
+        s.total(),
+        per_order.join(", "),
+        s.absorbed,
+        s.lost
+    );
+    Ok(())
 }
 
 /// `a..b` (0-based, `b` excluded) within a scan of `total` views.

@@ -6,6 +6,7 @@
 //! - [`film`]: images of named `f32` channels over a window of a frame, PNG and EXR files, and
 //!   merging windows back into a frame;
 //! - [`tiff`]: multi-page TIFF stacks (CT projections, label volumes);
+//! - [`plot`]: line plots as PNG (the goniometer's curves);
 //! - [`diagnostic`]: errors that point into a text file (`path:line:column: message`).
 //!
 //! Every file is written through [`write_atomic`]: complete or not at all.
@@ -16,6 +17,7 @@
 pub mod diagnostic;
 pub mod film;
 pub mod hair;
+pub mod plot;
 pub mod rays;
 pub mod tiff;
 

@@ -10,6 +10,7 @@
 
 pub mod ct;
 pub mod integrator;
+pub mod scatter;
 pub mod world;
 
 pub use integrator::{Buffers, render};

@@ -41,7 +41,7 @@ use std::f64::consts::{PI, TAU};
 use glam::DVec3;
 
 /// The last lobe index: R, TT, TRT explicit, `p = 3` the residual with isotropic azimuth.
-const P_MAX: usize = 3;
+pub const P_MAX: usize = 3;
 /// Absorption of eumelanin per unit concentration (pbrt-v4).
 const EUMELANIN_SIGMA_A: DVec3 = DVec3::new(0.419, 0.697, 1.37);
 /// Absorption of pheomelanin per unit concentration (pbrt-v4).
@@ -304,6 +304,21 @@ impl HairBsdf {
             lobe_pdf,
             rot,
         }
+    }
+
+    /// Per lobe `p`, the azimuthal term `A_p N_p(phi)` at `wi` (without the longitudinal
+    /// `M_p`): what a measurement of the fiber's azimuthal scattering compares with.
+    pub fn azimuthal_terms(&self, wo: DVec3, wi: DVec3) -> [DVec3; P_MAX + 1] {
+        let o = self.outgoing(wo);
+        let phi = wi.z.atan2(wi.y) - o.phi_o;
+        std::array::from_fn(|p| {
+            let n = if p < P_MAX {
+                trimmed_logistic(phi - self.phi_center(p, o.gamma_t), self.s)
+            } else {
+                1.0 / TAU
+            };
+            n * o.ap[p]
+        })
     }
 
     /// `(eval, pdf)` for `wi` given the `wo` terms.
