@@ -108,6 +108,16 @@ struct ScatterArgs {
     /// Also plot N_p(phi) (each order's power per phi bin) as PNG.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// Also measure at this many incident azimuths over 360 degrees (from --phi-i) and write
+    /// the (phi_i, phi_o) map to --map.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=3600))]
+    sweep: Option<u32>,
+    /// The map of --sweep: `.png` (row k: incident azimuth k of the sweep, top down; column:
+    /// the outgoing azimuth phi_o from -180 to 180 degrees; brightness the square root of
+    /// the power per bin, the largest white) or `.exr` (channel `total` and `p0`, `p1`, ... the
+    /// raw fractions per bin, R, G, B the display values).
+    #[arg(long)]
+    map: Option<PathBuf>,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
@@ -707,6 +717,11 @@ fn scatter_command(args: ScatterArgs) -> Result<()> {
         seed: args.seed,
     };
     g.validate().map_err(anyhow::Error::msg)?;
+    match (&args.map, args.sweep) {
+        (Some(m), Some(_)) => check_output(m, &["png", "exr"])?,
+        (None, None) => {}
+        _ => bail!("--sweep and --map go together"),
+    }
     let t0 = Instant::now();
     let s = pool.install(|| g.measure()).map_err(anyhow::Error::msg)?;
     let seconds = t0.elapsed().as_secs_f64();
@@ -735,6 +750,9 @@ fn scatter_command(args: ScatterArgs) -> Result<()> {
             plot.display()
         );
     }
+    if let (Some(map), Some(n)) = (&args.map, args.sweep) {
+        scatter_map(&g, n, map, &pool)?;
+    }
     let per_order: Vec<String> = (0..s.orders)
         .map(|p| format!("{} {:.6}", label(p), s.azimuthal(p).iter().sum::<f64>()))
         .collect();
@@ -749,6 +767,56 @@ fn scatter_command(args: ScatterArgs) -> Result<()> {
         per_order.join(", "),
         s.absorbed,
         s.lost
+    );
+    Ok(())
+}
+
+/// The goniometer at `n` incident azimuths `phi_i + 360 k / n`: each row the power per bin of
+/// the absolute outgoing azimuth `phi_o` (summed over `theta_o`), per order and in total.
+fn scatter_map(g: &Goniometer, n: u32, path: &Path, pool: &rayon::ThreadPool) -> Result<()> {
+    let b = g.bins;
+    let orders = g.max_order + 1;
+    let mut names: Vec<String> = ["R", "G", "B", "A", "total"].map(String::from).to_vec();
+    names.extend((0..orders).map(|p| format!("p{p}")));
+    let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    let mut film = Film::new((b as u32, n), Window::full(b as u32, n), &refs);
+    let bar = progress_bar(false, u64::from(n), "incident azimuths");
+    for k in 0..n {
+        let step = std::f64::consts::TAU * f64::from(k) / f64::from(n);
+        let m = Goniometer {
+            phi_i: g.phi_i + step,
+            ..g.clone()
+        };
+        let s = pool.install(|| m.measure()).map_err(anyhow::Error::msg)?;
+        // Relative bin j holds phi = phi_o - phi_i: its absolute azimuth is phi + phi_i.
+        let shift = (step / std::f64::consts::TAU * b as f64).round() as usize;
+        let per: Vec<Vec<f64>> = (0..orders).map(|p| s.azimuthal(p)).collect();
+        for j in 0..b {
+            let x = ((j + shift) % b) as u32;
+            let px = film.pixel_mut(x, k);
+            let total: f64 = per.iter().map(|v| v[j]).sum();
+            px[4] = total as f32;
+            for p in 0..orders {
+                px[5 + p] = per[p][j] as f32;
+            }
+        }
+        bar.set_position(u64::from(k) + 1);
+    }
+    bar.finish_and_clear();
+    let top = film
+        .data
+        .chunks(names.len())
+        .fold(0.0f32, |m, px| m.max(px[4]));
+    let channels = names.len();
+    for px in film.data.chunks_mut(channels) {
+        let v = if top > 0.0 { (px[4] / top).sqrt() } else { 0.0 };
+        px[..3].fill(v);
+        px[3] = 1.0;
+    }
+    film.write(path)?;
+    eprintln!(
+        "{}: {n} incident azimuths x {b} outgoing azimuth bins (phi_o from -180 to 180 degrees, shifted to the nearest bin)",
+        path.display()
     );
     Ok(())
 }

@@ -1445,3 +1445,86 @@ fn generate_yarn_writes_scene_truth_and_labels_and_ct_runs_on_it() {
     );
     assert!(hair.exists());
 }
+
+#[test]
+fn scatter_writes_its_table_plot_and_map() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gencyl-cli-tests/scatter");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (csv, png, map) = (dir.join("s.csv"), dir.join("s.png"), dir.join("m.exr"));
+    ok(
+        &[
+            "scatter",
+            "--aspect",
+            "0.8",
+            "--rotation",
+            "20",
+            "--theta-i",
+            "15",
+            "--rays",
+            "2000",
+            "--bins",
+            "36",
+            "--max-order",
+            "2",
+            "-o",
+            path(&csv),
+            "--plot",
+            path(&png),
+            "--sweep",
+            "3",
+            "--map",
+            path(&map),
+        ],
+        None,
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("order,theta_deg,phi_deg,value"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 3 * 36 * 36, "every bin of every order");
+    let total: f64 = rows.iter().map(|r| r[3]).sum();
+    assert!(
+        (total - 1.0).abs() < 1e-6,
+        "no absorption: the rows sum to 1, got {total}"
+    );
+    // The specular cone: all power at theta_o = -theta_i (the bin of -15 degrees).
+    let off: f64 = rows
+        .iter()
+        .filter(|r| (r[1] + 15.0).abs() > 5.0)
+        .map(|r| r[3])
+        .sum();
+    assert!(off < 1e-9, "{off} off the cone");
+    assert!(
+        rows.iter()
+            .all(|r| r[2] > -180.0 && r[2] < 180.0 && (0.0..=2.0).contains(&r[0]))
+    );
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    let film = gencyl_render::formats::Film::read_exr(&map).unwrap();
+    assert_eq!(film.frame, (36, 3));
+    assert!(film.channel_index("total").is_some() && film.channel_index("p2").is_some());
+    // Errors: a bad profile file, a map without a sweep, nonsense numbers; nothing written.
+    let bad = scratch("bad-profile.toml", b"profile = [[0, 0], [1, 0]]\n");
+    let out = dir.join("x.csv");
+    for args in [
+        vec!["scatter", "--profile", path(&bad), "-o", path(&out)],
+        vec!["scatter", "--map", path(&map), "-o", path(&out)],
+        vec!["scatter", "--eta", "0.9", "-o", path(&out)],
+        vec!["scatter", "--aspect", "nan", "-o", path(&out)],
+    ] {
+        let o = gencyl(&args, None);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(!out.exists());
+    }
+    let e = String::from_utf8(
+        gencyl(
+            &["scatter", "--profile", path(&bad), "-o", path(&out)],
+            None,
+        )
+        .stderr,
+    )
+    .unwrap();
+    assert!(e.contains("profile: a profile needs 3k points"), "{e}");
+}

@@ -37,7 +37,9 @@ pub const MAX_SEGMENTS: usize = 64;
 /// Half the fiber's length, in units of its bounding radius.
 const HALF_LENGTH: f64 = 1000.0;
 /// Rays per block of the parallel sum (fixed, so that the sums do not depend on threads).
-const BLOCK: usize = 1 << 14;
+const BLOCK: usize = 256;
+/// Blocks traced in parallel before their tallies are summed.
+const GROUP: usize = 64;
 
 /// The fiber's cross section.
 #[derive(Clone, Debug, PartialEq)]
@@ -242,22 +244,27 @@ impl Goniometer {
         let e = DVec3::X.cross(d).normalize();
         let width = self.half_width(&fiber, e);
         let (b, orders) = (self.bins, self.max_order + 1);
-        let blocks: Vec<Tally> = (0..self.rays.div_ceil(BLOCK))
-            .into_par_iter()
-            .map(|block| {
-                let mut tally = Tally::new(b * b * orders);
-                for k in block * BLOCK..((block + 1) * BLOCK).min(self.rays) {
-                    let mut rng = SampleRng::new(k as u32, (k >> 32) as u32, 0, self.seed);
-                    let h = width * (2.0 * (k as f64 + rng.uniform()) / self.rays as f64 - 1.0);
-                    let origin = h * e - 4.0 * d;
-                    self.trace(&fiber, Ray::new(origin, d), &mut tally);
-                }
-                tally
-            })
-            .collect();
+        // Blocks of rays in parallel, a group at a time, their tallies summed in block order:
+        // the same sums for any thread count, and at most a group of tallies in memory.
+        let blocks: Vec<usize> = (0..self.rays.div_ceil(BLOCK)).collect();
         let mut sum = Tally::new(b * b * orders);
-        for t in &blocks {
-            sum.add(t);
+        for group in blocks.chunks(GROUP) {
+            let tallies: Vec<Tally> = group
+                .par_iter()
+                .map(|&block| {
+                    let mut tally = Tally::new(b * b * orders);
+                    for k in block * BLOCK..((block + 1) * BLOCK).min(self.rays) {
+                        let mut rng = SampleRng::new(k as u32, (k >> 32) as u32, 0, self.seed);
+                        let h = width * (2.0 * (k as f64 + rng.uniform()) / self.rays as f64 - 1.0);
+                        let origin = h * e - 4.0 * d;
+                        self.trace(&fiber, Ray::new(origin, d), &mut tally);
+                    }
+                    tally
+                })
+                .collect();
+            for t in &tallies {
+                sum.add(t);
+            }
         }
         let n = sum.hits as f64;
         let scale = if n > 0.0 { 1.0 / n } else { 0.0 };
