@@ -855,7 +855,15 @@ fn phantom<'py>(
             py.detach(|| phantoms::generate_yarn(&spec))
         }
         "ply" => {
-            let spec: phantoms::PlySpec = serde_json::from_str(&text).map_err(bad)?;
+            // As on the command line: a fiber count given alone sets the packing free.
+            let mut value: serde_json::Value = serde_json::from_str(&text).map_err(bad)?;
+            if let Some(o) = value.as_object_mut()
+                && o.contains_key("fibers")
+                && !o.contains_key("packing")
+            {
+                o.insert("packing".into(), 0.0.into());
+            }
+            let spec: phantoms::PlySpec = serde_json::from_value(value).map_err(bad)?;
             py.detach(|| phantoms::generate_ply(&spec))
         }
         other => {

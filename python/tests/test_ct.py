@@ -168,6 +168,8 @@ def test_phantom_and_labels(tmp_path):
     assert abs(fraction - truth["fiber_volume_fraction"]) < 0.03, fraction
     # Cylinder numbers + 1: the strands' segments, within range.
     assert labels.max() <= len(scene)
+    ply_toml, ply = gencyl.phantom("ply", fibers=30, seed=2)
+    assert ply["fiber_count"] == 30 and "[ct]" in ply_toml
     with pytest.raises(ValueError, match="packing"):
         gencyl.phantom("yarn", fibers=100, packing=0.95)
     with pytest.raises(ValueError, match="unknown field"):

@@ -22,7 +22,7 @@ use gencyl_render::scenes::job::{self, PlanError, RenderJob, RenderRequest};
 use gencyl_render::scenes::{builtin, phantom, synth};
 use gencyl_render::settings::{Integrator, RenderTable};
 use gencyl_render::transport::ct::Projector;
-use gencyl_render::transport::scatter::{FiberSection, Goniometer};
+use gencyl_render::transport::scatter::{FiberSection, Goniometer, Scattering};
 use gencyl_render::transport::{World, integrator};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -112,9 +112,10 @@ struct ScatterArgs {
     /// the (phi_i, phi_o) map to --map.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=3600))]
     sweep: Option<u32>,
-    /// The map of --sweep: `.png` (row k: incident azimuth k of the sweep, top down; column:
-    /// the outgoing azimuth phi_o from -180 to 180 degrees; brightness the square root of
-    /// the power per bin, the largest white) or `.exr` (channel `total` and `p0`, `p1`, ... the
+    /// The map of --sweep, for the fiber as --rotation places it for the first azimuth:
+    /// `.png` (row k: incident azimuth --phi-i + 360 k / N, top down; column: the outgoing
+    /// azimuth minus --phi-i, from -180 to 180 degrees; brightness the square root of the
+    /// power per bin, the largest white) or `.exr` (channels `total` and `p0`, `p1`, ... the
     /// raw fractions per bin, R, G, B the display values).
     #[arg(long)]
     map: Option<PathBuf>,
@@ -725,34 +726,25 @@ fn scatter_command(args: ScatterArgs) -> Result<()> {
     let t0 = Instant::now();
     let s = pool.install(|| g.measure()).map_err(anyhow::Error::msg)?;
     let seconds = t0.elapsed().as_secs_f64();
-    write_atomically(&args.output, s.csv().as_bytes())?;
+    let map = match (&args.map, args.sweep) {
+        (Some(_), Some(n)) => Some(scatter_map(&g, n, &pool)?),
+        _ => None,
+    };
+    // The table, the plot and the map, all or none.
+    let mut written: Vec<&Path> = Vec::new();
+    let result = write_scatter(&args, &s, map.as_ref(), &mut written);
+    if result.is_err() {
+        for p in written {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+    result?;
     let names = ["R", "TT", "TRT"];
     let label = |p: usize| match names.get(p) {
         Some(n) if p + 1 < s.orders => n.to_string(),
         _ if p + 1 == s.orders => format!("p>={p}"),
         _ => format!("p={p}"),
     };
-    if let Some(plot) = &args.plot {
-        let colours = [[220, 40, 40], [40, 160, 40], [40, 80, 220], [150, 150, 150]];
-        let curves: Vec<Vec<f64>> = (0..s.orders).map(|p| s.azimuthal(p)).collect();
-        let drawn: Vec<plot::Curve> = curves
-            .iter()
-            .enumerate()
-            .map(|(p, y)| plot::Curve {
-                y,
-                colour: colours[p.min(3)],
-            })
-            .collect();
-        plot::write_line_plot(plot, &drawn, (-180.0, 180.0), &[-90.0, 0.0, 90.0])
-            .map_err(anyhow::Error::msg)?;
-        eprintln!(
-            "{}: power per phi bin, -180 to 180 degrees (grid at -90, 0, 90); red R, green TT, blue TRT, grey higher orders",
-            plot.display()
-        );
-    }
-    if let (Some(map), Some(n)) = (&args.map, args.sweep) {
-        scatter_map(&g, n, map, &pool)?;
-    }
     let per_order: Vec<String> = (0..s.orders)
         .map(|p| format!("{} {:.6}", label(p), s.azimuthal(p).iter().sum::<f64>()))
         .collect();
@@ -771,9 +763,51 @@ fn scatter_command(args: ScatterArgs) -> Result<()> {
     Ok(())
 }
 
-/// The goniometer at `n` incident azimuths `phi_i + 360 k / n`: each row the power per bin of
-/// the absolute outgoing azimuth `phi_o` (summed over `theta_o`), per order and in total.
-fn scatter_map(g: &Goniometer, n: u32, path: &Path, pool: &rayon::ThreadPool) -> Result<()> {
+/// Writes the goniometer's table, plot and map, recording each file written.
+fn write_scatter<'a>(
+    args: &'a ScatterArgs,
+    s: &Scattering,
+    map: Option<&Film>,
+    written: &mut Vec<&'a Path>,
+) -> Result<()> {
+    write_atomically(&args.output, s.csv().as_bytes())?;
+    written.push(&args.output);
+    if let Some(plot) = &args.plot {
+        let colours = [[220, 40, 40], [40, 160, 40], [40, 80, 220], [150, 150, 150]];
+        let curves: Vec<Vec<f64>> = (0..s.orders).map(|p| s.azimuthal(p)).collect();
+        let drawn: Vec<plot::Curve> = curves
+            .iter()
+            .enumerate()
+            .map(|(p, y)| plot::Curve {
+                y,
+                colour: colours[p.min(3)],
+            })
+            .collect();
+        plot::write_line_plot(plot, &drawn, (-180.0, 180.0), &[-90.0, 0.0, 90.0])
+            .map_err(anyhow::Error::msg)?;
+        written.push(plot);
+        eprintln!(
+            "{}: power per phi bin, -180 to 180 degrees (grid at -90, 0, 90); red R, green TT, blue TRT, grey higher orders",
+            plot.display()
+        );
+    }
+    if let (Some(path), Some(film)) = (&args.map, map) {
+        film.write(path)?;
+        written.push(path);
+        eprintln!(
+            "{}: {} incident azimuths x {} outgoing azimuth bins (phi_o - phi_i of the first azimuth, -180 to 180 degrees, shifted to the nearest bin)",
+            path.display(),
+            film.frame.1,
+            film.frame.0
+        );
+    }
+    Ok(())
+}
+
+/// The goniometer at `n` incident azimuths `phi_i + 360 k / n` on one fiber (its section fixed
+/// in the world): each row the power per bin of the outgoing azimuth `phi_o - phi_i` (the
+/// first azimuth's; summed over `theta_o`), per order and in total.
+fn scatter_map(g: &Goniometer, n: u32, pool: &rayon::ThreadPool) -> Result<Film> {
     let b = g.bins;
     let orders = g.max_order + 1;
     let mut names: Vec<String> = ["R", "G", "B", "A", "total"].map(String::from).to_vec();
@@ -783,8 +817,11 @@ fn scatter_map(g: &Goniometer, n: u32, path: &Path, pool: &rayon::ThreadPool) ->
     let bar = progress_bar(false, u64::from(n), "incident azimuths");
     for k in 0..n {
         let step = std::f64::consts::TAU * f64::from(k) / f64::from(n);
+        // The same fiber lit from another azimuth: its section keeps its place in the world
+        // (the rotation is measured from the light).
         let m = Goniometer {
             phi_i: g.phi_i + step,
+            rotation: g.rotation - step,
             ..g.clone()
         };
         let s = pool.install(|| m.measure()).map_err(anyhow::Error::msg)?;
@@ -813,12 +850,7 @@ fn scatter_map(g: &Goniometer, n: u32, path: &Path, pool: &rayon::ThreadPool) ->
         px[..3].fill(v);
         px[3] = 1.0;
     }
-    film.write(path)?;
-    eprintln!(
-        "{}: {n} incident azimuths x {b} outgoing azimuth bins (phi_o from -180 to 180 degrees, shifted to the nearest bin)",
-        path.display()
-    );
-    Ok(())
+    Ok(film)
 }
 
 /// `a..b` (0-based, `b` excluded) within a scan of `total` views.
@@ -982,12 +1014,22 @@ fn write_phantom(
         }
         None => None,
     };
-    write_atomically(&scene_path, made.scene_toml.as_bytes())?;
     let text = serde_json::to_string_pretty(&truth).context("the truth as JSON")?;
-    write_atomically(&truth_path, text.as_bytes())?;
-    if let Some((grid, labels)) = &labels {
-        phantom::write_labels_tiff(&labels_path, labels, *grid).map_err(anyhow::Error::msg)?;
+    // The scene, its truth and its labels, all or none.
+    let written = (|| -> Result<()> {
+        write_atomically(&scene_path, made.scene_toml.as_bytes())?;
+        write_atomically(&truth_path, text.as_bytes())?;
+        if let Some((grid, labels)) = &labels {
+            phantom::write_labels_tiff(&labels_path, labels, *grid).map_err(anyhow::Error::msg)?;
+        }
+        Ok(())
+    })();
+    if written.is_err() {
+        for p in [&scene_path, &truth_path, &labels_path] {
+            let _ = std::fs::remove_file(p);
+        }
     }
+    written?;
     let t = &made.truth;
     eprintln!(
         "{}: {} fibers, fiber volume fraction {:.6} (of the envelope, exact from the geometry); truth in {}{}; {:.2} s",

@@ -1504,7 +1504,28 @@ fn scatter_writes_its_table_plot_and_map() {
     assert!(std::fs::metadata(&png).unwrap().len() > 1000);
     let film = gencyl_render::formats::Film::read_exr(&map).unwrap();
     assert_eq!(film.frame, (36, 3));
-    assert!(film.channel_index("total").is_some() && film.channel_index("p2").is_some());
+    assert!(film.channel_index("p2").is_some());
+    // One elliptical fiber lit from three azimuths: each row sums to 1, and the rows are not
+    // one measurement turned (the section stays put while the light goes round).
+    let total = film.channel_index("total").unwrap();
+    let row = |k: u32| {
+        (0..36)
+            .map(|x| film.pixel(x, k)[total] as f64)
+            .collect::<Vec<_>>()
+    };
+    for k in 0..3 {
+        assert!((row(k).iter().sum::<f64>() - 1.0).abs() < 1e-5);
+    }
+    let turned: Vec<f64> = (0..36).map(|x| row(0)[(x + 36 - 12) % 36]).collect();
+    let differ = row(1)
+        .iter()
+        .zip(&turned)
+        .map(|(a, b)| (a - b).abs())
+        .sum::<f64>();
+    assert!(
+        differ > 0.01,
+        "row 1 is row 0 turned by 120 degrees: {differ}"
+    );
     // Errors: a bad profile file, a map without a sweep, nonsense numbers; nothing written.
     let bad = scratch("bad-profile.toml", b"profile = [[0, 0], [1, 0]]\n");
     let out = dir.join("x.csv");

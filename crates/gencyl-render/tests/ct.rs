@@ -299,6 +299,26 @@ fn absorbance_stays_finite_where_transmission_underflows() {
 }
 
 #[test]
+fn an_opaque_path_reads_opaque() {
+    // mu L overflows to infinity: no light, never NaN (nor read as clear).
+    let src = format!(
+        "[material.lead]\ntype = \"diffuse\"\nxray_mu = 1e308\n\
+         [[cylinder]]\nbezier = [[0, 0, -50], [0, 0, -10], [0, 0, 10], [0, 0, 50]]\n\
+         major_radius = [{A}, {A}]\nmaterial = \"lead\"\n\
+         [ct]\ndetector = [1, 1]\npixel = [0.01, 0.01]\nviews = 1\nquantity = \"transmission\"\n"
+    );
+    let desc = SceneDescription::parse(&src, "lead.toml").unwrap();
+    let setup = desc.ct.clone().unwrap();
+    let world = World::new(desc);
+    let t = project(&world, &setup, 0)[0];
+    assert_eq!(t, 0.0);
+    let mut absorbance = setup.clone();
+    absorbance.quantity = Quantity::Absorbance;
+    let a = project(&world, &absorbance, 0)[0];
+    assert!(!a.is_nan() && a > 1e30, "{a}");
+}
+
+#[test]
 fn ct_table_errors_are_located() {
     let base =
         "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.1, 0.1]\n";

@@ -40,7 +40,10 @@ pub fn write_pages<P: Pixel, W: Write + Seek>(
 where
     [P]: TiffValue,
 {
-    let bytes = u64::from(width) * u64::from(height) * pages as u64 * size_of::<P>() as u64;
+    // Pixels, and each page's directory (under 1 KiB) and strip table (at most a strip per
+    // row, 16 bytes each): past 4 GiB less 16 MiB of that, BigTIFF.
+    let bytes = u64::from(width) * u64::from(height) * pages as u64 * size_of::<P>() as u64
+        + pages as u64 * (1024 + 16 * u64::from(height));
     let tiff = |e: tiff::TiffError| format!("cannot write the TIFF: {e}");
     let compression = if deflate {
         Compression::Deflate(DeflateLevel::Fast)

@@ -176,6 +176,12 @@ impl Scanner {
                 ));
             }
         }
+        if self.samples_per_side == 0 || self.samples_per_side > 32 {
+            return Err(format!(
+                "rays per pixel: 1 to 32 per side, got {}",
+                self.samples_per_side
+            ));
+        }
         if !(self.focal_spot >= 0.0 && self.focal_spot.is_finite()) {
             return Err(format!(
                 "focal_spot must be zero or positive, got {}",
@@ -409,6 +415,9 @@ mod tests {
             samples_per_side: 4,
             focal_spot: 0.2,
         };
+        let mut no_rays = scanner.clone();
+        no_rays.samples_per_side = 0;
+        assert!(no_rays.validate().unwrap_err().contains("rays per pixel"));
         let mut seen = Vec::new();
         for s in 0..16 {
             let o = scanner.ray(&view, 0, 0, s).origin - view.source;

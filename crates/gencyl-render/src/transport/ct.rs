@@ -93,8 +93,11 @@ impl Default for LogSum {
 }
 
 impl LogSum {
-    /// Adds `exp(x)`.
+    /// Adds `exp(x)` (nothing for `x = -inf`: an opaque path).
     pub fn add(&mut self, x: f64) {
+        if x == f64::NEG_INFINITY {
+            return;
+        }
         if x <= self.max {
             self.sum += (x - self.max).exp();
         } else {

@@ -453,8 +453,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let g = self.radial_g_r(o, d, Dual::var(u), 1.0);
         let delta = -g.v / g.d;
         let resolution = 4.0 * f64::EPSILON * u.abs().max(f64::MIN_POSITIVE);
-        if delta.abs() <= resolution {
-            w.v + w.d * delta
+        let refined = w.v + w.d * delta;
+        if delta.abs() <= resolution && refined.is_finite() {
+            refined
         } else {
             w.v
         }
