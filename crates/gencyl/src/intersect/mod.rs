@@ -377,6 +377,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             return;
         }
         if method == Method::Radial {
+            if self.in_plane_roots(o, d, out) {
+                return;
+            }
             let quad = branches::Quadric::new(self, o, d);
             for (a, b) in prefilter::candidate_ranges(self, o, d) {
                 let (a, b) = widen(a, b, lo, hi);
@@ -437,6 +440,87 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 out.push(SideRoot { u, w, v });
             }
         }
+    }
+
+    /// A ray in a normal plane of a straight axis (perpendicular to it: the goniometer at
+    /// normal incidence, CT of straight fibers about their own direction): the normal planes
+    /// are parallel, so the ray meets the solid only in the section at the one `u*` whose plane
+    /// holds it, `t.(a(u*) - o) = 0` (monotone in `u`: bisected to the last bit). There the
+    /// unit circle under the rule gives `|phi0 + w phid|^2 = 1`, `phi0 = s^-1((n.e, b.e), u*)`,
+    /// `phid = s^-1((n.d, b.d), u*)`, `e = o' - a(u*)` with `o'` the ray's point nearest
+    /// `a(u*)`: a quadratic in `w`. Returns false (nothing pushed) unless the axis is straight
+    /// and the ray perpendicular to it to `1e-14` relative, and `u*` lies inside `[0, 1]` by
+    /// more than `1e-9` (at the caps' planes the general method decides).
+    fn in_plane_roots(&self, o: DVec3, d: DVec3, out: &mut SideRoots) -> bool {
+        let p = self.axis.points;
+        let chord = p[3] - p[0];
+        let len2 = chord.length_squared();
+        let straight = [p[1], p[2]]
+            .iter()
+            .all(|&q| (q - p[0]).cross(chord).length_squared() <= 1e-28 * len2 * len2);
+        if !(straight && len2 > 0.0) {
+            return false;
+        }
+        let t = chord / len2.sqrt();
+        if t.dot(d).abs() > 1e-14 * d.length() {
+            return false;
+        }
+        // u*: where t.(a(u) - o) changes sign (increasing along the chord).
+        let f = |u: f64| t.dot(self.axis.point(u) - o);
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        if !(f(lo) < 0.0 && f(hi) > 0.0) {
+            // Beyond the segment's planes (or on a cap's): no side hit, or the general method.
+            return f(lo) > 0.0 || f(hi) < 0.0;
+        }
+        while hi - lo > f64::EPSILON * hi.max(1e-300) {
+            let mid = 0.5 * (lo + hi);
+            if mid <= lo || mid >= hi {
+                break;
+            }
+            if f(mid) < 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let u = 0.5 * (lo + hi);
+        if !(u > 1e-9 && u < 1.0 - 1e-9) {
+            return false;
+        }
+        let a = self.axis.point(u);
+        let shift = (a - o).dot(d) / d.length_squared();
+        let o2 = o + shift * d;
+        let frame = self.frame(u);
+        let e = o2 - a;
+        let phi0 = self
+            .sweep
+            .inverse(u, V2::new(frame.n.dot(e), frame.b.dot(e)))
+            .value();
+        let phid = self
+            .sweep
+            .inverse(u, V2::new(frame.n.dot(d), frame.b.dot(d)))
+            .value();
+        let qa = phid.length_squared();
+        let qb = phi0.dot(phid);
+        let qc = phi0.length_squared() - 1.0;
+        let disc = qb * qb - qa * qc;
+        if !(disc > 0.0 && qa > 0.0) {
+            return true;
+        }
+        // The two roots without cancellation.
+        let k = -(qb + qb.signum() * disc.sqrt());
+        let roots = if k != 0.0 {
+            [k / qa, qc / k]
+        } else {
+            [0.0, 0.0]
+        };
+        for w in roots {
+            let v = crate::section::angle(phi0 + w * phid);
+            if w.is_finite() && !out.is_full() {
+                out.push(SideRoot { u, w: shift + w, v });
+            }
+        }
+        true
     }
 
     /// The ray parameter `w` of the root of [`Radial`] (`R = 1`) found at `u`, to the root's
@@ -977,5 +1061,70 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Rays in a normal plane of a straight axis: the in-plane quadratic ([`Method::Radial`])
+    /// against the prism system of [`Method::General`] (an independent method), on straight
+    /// elliptical fibers that taper and twist, along a coordinate axis (exactly perpendicular
+    /// rays) and along a skew one (perpendicular to 1e-16), with grazing offsets down to 1e-9
+    /// of the radius.
+    #[test]
+    fn rays_in_a_normal_plane_of_a_straight_axis() {
+        let mut rng = Rng(41);
+        let mut hits = 0;
+        for skew in [false, true] {
+            let dir = if skew {
+                DVec3::new(0.3, -0.5, 0.8).normalize()
+            } else {
+                DVec3::X
+            };
+            let p0 = v3(0.2, -0.1, 0.4);
+            let cyl: Cyl = FiberSpec {
+                bezier: [0.0, 0.2, 0.7, 1.0].map(|k| p0 + 3.0 * k * dir),
+                major_radius: [0.2, 0.12],
+                minor_radius: [0.1, 0.07],
+                rotation: [0.3, 2.5],
+                caps: true,
+                normal_hint: None,
+                section: Section::default(),
+            }
+            .build()
+            .unwrap();
+            let (e1, e2) = (
+                dir.any_orthonormal_vector(),
+                dir.cross(dir.any_orthonormal_vector()),
+            );
+            for k in 0..400 {
+                let u = rng.range(0.01, 0.99);
+                let angle = rng.range(0.0, std::f64::consts::TAU);
+                let across = angle.cos() * e1 + angle.sin() * e2;
+                let d = -across;
+                let side = across.cross(dir).normalize();
+                // Offsets across the beam, a fifth of them grazing the bounding circle.
+                let offset = if k % 5 == 0 {
+                    0.2 * (1.0 - 10f64.powf(rng.range(-9.0, -1.0)))
+                } else {
+                    rng.range(-0.25, 0.25)
+                };
+                let o = cyl.axis().point(u) + 2.0 * across + offset * side;
+                let ray = Ray::new(o, d);
+                let (mut fast, mut general) = (Vec::new(), Vec::new());
+                cyl.intersect_all_with(&ray, 0.0, f64::INFINITY, Method::Radial, &mut fast);
+                cyl.intersect_all_with(&ray, 0.0, f64::INFINITY, Method::General, &mut general);
+                assert_eq!(
+                    fast.len(),
+                    general.len(),
+                    "skew {skew}, ray {k}: {fast:?} vs {general:?}"
+                );
+                for (a, b) in fast.iter().zip(&general) {
+                    assert!((a.t - b.t).abs() < 1e-9, "{} vs {}", a.t, b.t);
+                    assert!((a.u - b.u).abs() < 1e-7 && (a.normal - b.normal).length() < 1e-6);
+                    // On the surface.
+                    assert!((cyl.surface_point(a.u, a.v) - a.point).length() < 1e-12);
+                }
+                hits += fast.len();
+            }
+        }
+        assert!(hits > 500, "{hits} hits");
     }
 }
