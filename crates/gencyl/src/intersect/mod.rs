@@ -448,9 +448,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// holds it, `t.(a(u*) - o) = 0` (monotone in `u`: bisected to the last bit). There the
     /// unit circle under the rule gives `|phi0 + w phid|^2 = 1`, `phi0 = s^-1((n.e, b.e), u*)`,
     /// `phid = s^-1((n.d, b.d), u*)`, `e = o' - a(u*)` with `o'` the ray's point nearest
-    /// `a(u*)`: a quadratic in `w`. Returns false (nothing pushed) unless the axis is straight
-    /// and the ray perpendicular to it to `1e-14` relative, and `u*` lies inside `[0, 1]` by
-    /// more than `1e-9` (at the caps' planes the general method decides).
+    /// `a(u*)`: a quadratic in `w`. Returns whether it decided: false (nothing pushed) unless
+    /// the axis is straight and the ray perpendicular to it to `1e-14` relative; true with no
+    /// roots when the ray's plane lies beyond the segment's ends; false again when `u*` is
+    /// within `1e-9` of an end (at the caps' planes the general method decides).
     fn in_plane_roots(&self, o: DVec3, d: DVec3, out: &mut SideRoots) -> bool {
         let p = self.axis.points;
         let chord = p[3] - p[0];
