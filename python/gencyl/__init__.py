@@ -22,9 +22,9 @@ from typing import Optional, Union
 
 import numpy as np
 
-from ._gencyl import Scene, __version__, ct, phantom, render
+from ._gencyl import Scene, __version__, ct, phantom, render, scatter
 
-__all__ = ["Scene", "ct", "phantom", "render", "xray", "__version__"]
+__all__ = ["Scene", "ct", "phantom", "render", "scatter", "xray", "__version__"]
 
 
 def xray(

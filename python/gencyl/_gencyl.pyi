@@ -97,3 +97,20 @@ def ct(
 
 def phantom(kind: str, **spec: Any) -> Tuple[str, Dict[str, Any]]:
     """A yarn or ply phantom: (scene TOML text, ground truth dict)."""
+
+def scatter(
+    aspect: float = 1.0,
+    profile: Optional[npt.NDArray[np.float64]] = None,
+    rotation: float = 0.0,
+    eta: float = 1.55,
+    sigma_a: float = 0.0,
+    tilt: float = 0.0,
+    theta_i: float = 0.0,
+    phi_i: float = 0.0,
+    rays: int = 100_000,
+    max_order: int = 3,
+    bins: int = 90,
+    seed: int = 1,
+    threads: Optional[int] = None,
+) -> Dict[str, Any]:
+    """The goniometer: values (orders, bins, bins), theta_deg, phi_deg, lost, absorbed, hits."""

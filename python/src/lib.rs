@@ -23,6 +23,7 @@ use gencyl_render::scenes::job::{self, PlanError, RenderRequest};
 use gencyl_render::scenes::phantom as phantoms;
 use gencyl_render::settings::{Integrator, RenderTable};
 use gencyl_render::transport::ct::Projector;
+use gencyl_render::transport::scatter::{FiberSection, Goniometer};
 use gencyl_render::transport::{World, integrator};
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
@@ -877,6 +878,74 @@ fn phantom<'py>(
     Ok((made.scene_toml, truth))
 }
 
+/// A virtual goniometer, as `gencyl scatter` measures it: how one straight fiber (a circle,
+/// an ellipse of minor / major radius `aspect`, or the Bezier loop `profile`, (K, 2) points)
+/// scatters light arriving from `(theta_i, phi_i)` (degrees), traced through its exact solid.
+/// Returns a dict: `values` (orders, bins, bins) float64, the fraction of the power that met
+/// the fiber leaving per order, `theta_o` bin and relative-azimuth bin (the CSV's rows, bit for
+/// bit), `theta_deg` and `phi_deg` (the bin centres), `lost`, `absorbed` and `hits`.
+#[pyfunction]
+#[pyo3(signature = (aspect = 1.0, profile = None, rotation = 0.0, eta = 1.55, sigma_a = 0.0, tilt = 0.0, theta_i = 0.0, phi_i = 0.0, rays = 100_000, max_order = 3, bins = 90, seed = 1, threads = None))]
+#[allow(clippy::too_many_arguments)]
+fn scatter<'py>(
+    py: Python<'py>,
+    aspect: f64,
+    profile: Option<&Bound<'py, PyAny>>,
+    rotation: f64,
+    eta: f64,
+    sigma_a: f64,
+    tilt: f64,
+    theta_i: f64,
+    phi_i: f64,
+    rays: usize,
+    max_order: usize,
+    bins: usize,
+    seed: u64,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let section = match profile {
+        None => FiberSection::Ellipse { aspect },
+        Some(p) => {
+            let (n, flat) = rows_of("profile", p, &[2])?;
+            FiberSection::Profile(
+                (0..n)
+                    .map(|i| glam::DVec2::new(flat[2 * i], flat[2 * i + 1]))
+                    .collect(),
+            )
+        }
+    };
+    let g = Goniometer {
+        section,
+        rotation: rotation.to_radians(),
+        eta,
+        sigma_a,
+        tilt: tilt.to_radians(),
+        theta_i: theta_i.to_radians(),
+        phi_i: phi_i.to_radians(),
+        rays,
+        max_order,
+        bins,
+        seed,
+    };
+    g.validate().map_err(PyValueError::new_err)?;
+    let pool = pool(threads)?;
+    let s = py
+        .detach(|| on(&pool, || g.measure()))
+        .map_err(PyValueError::new_err)?;
+    let out = PyDict::new(py);
+    let theta: Vec<f64> = (0..s.bins).map(|k| s.theta_deg(k)).collect();
+    let phi: Vec<f64> = (0..s.bins).map(|k| s.phi_deg(k)).collect();
+    let values = Array3::from_shape_vec((s.orders, s.bins, s.bins), s.values)
+        .expect("a value per bin of every order");
+    out.set_item("values", values.into_pyarray(py))?;
+    out.set_item("theta_deg", theta.into_pyarray(py))?;
+    out.set_item("phi_deg", phi.into_pyarray(py))?;
+    out.set_item("lost", s.lost)?;
+    out.set_item("absorbed", s.absorbed)?;
+    out.set_item("hits", s.hits)?;
+    Ok(out)
+}
+
 /// The native module.
 #[pymodule]
 fn _gencyl(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -884,6 +953,7 @@ fn _gencyl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(ct, m)?)?;
     m.add_function(wrap_pyfunction!(phantom, m)?)?;
+    m.add_function(wrap_pyfunction!(scatter, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
