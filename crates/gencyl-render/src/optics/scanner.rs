@@ -80,7 +80,7 @@ pub struct Rotation {
     pub start: f64,
     /// Angle covered, radians (view `k` at `start + k arc / views`).
     pub arc: f64,
-    /// Unit rotation axis (detector rows run along it).
+    /// Unit rotation axis (the detector's row index counts along it: `v` is parallel to it).
     pub axis: DVec3,
     /// The centre of rotation.
     pub center: DVec3,
