@@ -141,6 +141,11 @@ struct CtArgs {
     /// With `--quantity length`: only this material's path length.
     #[arg(long)]
     material: Option<String>,
+    /// Also the mean path length through each material the solids use, from the same rays:
+    /// one more stack per material, OUT.length.NAME.tif (NAME with characters other than
+    /// letters, digits, `-` and `_` made `_`; the sidecar's `length_stacks` names the files).
+    #[arg(long)]
+    lengths: bool,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
@@ -634,21 +639,58 @@ fn ct_command(args: CtArgs) -> Result<()> {
         };
         let world = World::new(desc);
         let t1 = Instant::now();
-        let projector = Projector::new(&world, &setup);
+        // The materials of the solids, for --lengths.
+        let mut used: Vec<u32> = if args.lengths {
+            let spheres = world.spheres.iter().map(|(_, m)| *m);
+            world.cylinder_materials.iter().copied().chain(spheres).collect()
+        } else {
+            Vec::new()
+        };
+        used.sort_unstable();
+        used.dedup();
+        let stem = args.output.with_extension("");
+        let length_paths: Vec<PathBuf> = used
+            .iter()
+            .map(|&m| {
+                // The name as a file name: letters, digits, `-` and `_` kept, the rest `_`.
+                let name: String = world.materials[m as usize]
+                    .name
+                    .chars()
+                    .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+                    .collect();
+                PathBuf::from(format!("{}.length.{name}.tif", stem.display()))
+            })
+            .collect();
+        let projector = Projector::new(&world, &setup).with_lengths(used.clone());
         let bar = progress_bar(args.quiet, views.len() as u64, "views");
+        let mut paths: Vec<&Path> = vec![&args.output];
+        paths.extend(length_paths.iter().map(PathBuf::as_path));
         let io = |e: std::io::Error| format!("{}: cannot write: {e}", args.output.display());
-        gencyl_render::formats::write_atomic(
-            &args.output,
-            |out| projector.write_stack(out, views.clone(), |n| bar.set_position(n as u64)),
+        gencyl_render::formats::write_atomic_all(
+            &paths,
+            |outs| projector.write_stacks(outs, views.clone(), |n| bar.set_position(n as u64)),
             io,
         )
         .map_err(anyhow::Error::msg)?;
         bar.finish_and_clear();
         let t2 = Instant::now();
-        let sidecar = projector.sidecar(views.clone(), &name);
+        let mut sidecar = projector.sidecar(views.clone(), &name);
+        if args.lengths {
+            let stacks: serde_json::Map<String, serde_json::Value> = used
+                .iter()
+                .zip(&length_paths)
+                .map(|(&m, p)| {
+                    let file = p.file_name().map(|n| n.to_string_lossy().into_owned());
+                    (world.materials[m as usize].name.clone(), file.into())
+                })
+                .collect();
+            sidecar["length_stacks"] = stacks.into();
+        }
         let text = serde_json::to_string_pretty(&sidecar).expect("JSON of plain values");
         if let Err(e) = write_atomically(&sidecar_path, text.as_bytes()) {
-            let _ = std::fs::remove_file(&args.output);
+            for p in paths {
+                let _ = std::fs::remove_file(p);
+            }
             return Err(e);
         }
         let s = &setup.scanner;

@@ -1549,3 +1549,53 @@ fn scatter_writes_its_table_plot_and_map() {
     .unwrap();
     assert!(e.contains("profile: a profile needs 3k points"), "{e}");
 }
+
+#[test]
+fn ct_lengths_per_material_in_one_pass_equal_one_run_per_material() {
+    let scene = ct_scene(
+        "ct-lengths.toml",
+        "beam = \"cone\"\ndetector = [20, 5]\npixel = [0.05, 0.2]\nviews = 4\n\
+         source_distance = 3\ndetector_distance = 1\nsamples = 4\n",
+    );
+    let out = scratch("ct-lengths.tif", b"");
+    ok(
+        &["ct", path(&scene), "-o", path(&out), "-q", "--lengths"],
+        None,
+    );
+    let sidecar = json(&out.with_extension("json"));
+    let stacks = sidecar["length_stacks"].as_object().unwrap();
+    assert_eq!(
+        stacks.len(),
+        2,
+        "the fibers' and the sphere's materials: {stacks:?}"
+    );
+    for (material, file) in stacks {
+        let one = scratch(&format!("ct-one-{material}.tif"), b"");
+        ok(
+            &[
+                "ct",
+                path(&scene),
+                "-o",
+                path(&one),
+                "-q",
+                "--quantity",
+                "length",
+                "--material",
+                material,
+            ],
+            None,
+        );
+        let together = out.with_file_name(file.as_str().unwrap());
+        assert!(tiff_pages(&together) == tiff_pages(&one), "{material}");
+        assert!(
+            tiff_pages(&one)
+                .iter()
+                .flatten()
+                .any(|&x| f32::from_bits(x) > 0.01)
+        );
+    }
+    // The quantity's own stack is the same as without --lengths.
+    let plain = scratch("ct-plain.tif", b"");
+    ok(&["ct", path(&scene), "-o", path(&plain), "-q"], None);
+    assert!(tiff_pages(&plain) == tiff_pages(&out));
+}

@@ -37,25 +37,50 @@ pub fn write_atomic<E>(
     encode: impl FnOnce(&mut BufWriter<File>) -> Result<(), E>,
     io: impl Fn(std::io::Error) -> E,
 ) -> Result<(), E> {
+    write_atomic_all(&[path], |outs| encode(&mut outs[0]), io)
+}
+
+/// [`write_atomic`] for several files written together: `encode` fills one temp file per path,
+/// and only when all are complete are they renamed into place; on any failure every temp file
+/// is removed (and no path is touched unless a rename itself fails).
+pub fn write_atomic_all<E>(
+    paths: &[&Path],
+    encode: impl FnOnce(&mut [BufWriter<File>]) -> Result<(), E>,
+    io: impl Fn(std::io::Error) -> E,
+) -> Result<(), E> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp = path.with_file_name(format!(".{name}.{}-{n}.tmp", std::process::id()));
-    let file = File::options()
-        .write(true)
-        .create_new(true)
-        .open(&tmp)
-        .map_err(&io)?;
+    let temps: Vec<_> = paths
+        .iter()
+        .map(|path| {
+            let name = path.file_name().unwrap_or_default().to_string_lossy();
+            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+            path.with_file_name(format!(".{name}.{}-{n}.tmp", std::process::id()))
+        })
+        .collect();
     let result = (|| {
-        let mut out = BufWriter::new(file);
-        encode(&mut out)?;
-        let file = out.into_inner().map_err(|e| io(e.into_error()))?;
-        file.sync_all().map_err(&io)?;
-        drop(file);
-        std::fs::rename(&tmp, path).map_err(&io)
+        let mut outs = Vec::with_capacity(temps.len());
+        for tmp in &temps {
+            let file = File::options()
+                .write(true)
+                .create_new(true)
+                .open(tmp)
+                .map_err(&io)?;
+            outs.push(BufWriter::new(file));
+        }
+        encode(&mut outs)?;
+        for out in outs {
+            let file = out.into_inner().map_err(|e| io(e.into_error()))?;
+            file.sync_all().map_err(&io)?;
+        }
+        for (tmp, path) in temps.iter().zip(paths) {
+            std::fs::rename(tmp, path).map_err(&io)?;
+        }
+        Ok(())
     })();
     if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+        for tmp in &temps {
+            let _ = std::fs::remove_file(tmp);
+        }
     }
     result
 }

@@ -10,7 +10,7 @@ use std::path::Path;
 use tiff::TiffResult;
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::encoder::colortype::{ColorType, Gray32, Gray32Float};
-use tiff::encoder::{Compression, DeflateLevel, TiffEncoder, TiffKind, TiffValue};
+use tiff::encoder::{Compression, DeflateLevel, TiffEncoder, TiffKindBig, TiffValue};
 
 /// Past this many pixel bytes a stack is BigTIFF.
 const CLASSIC_LIMIT: u64 = (1 << 32) - (16 << 20);
@@ -32,10 +32,31 @@ impl Pixel for u32 {
 /// message).
 pub fn write_pages<P: Pixel, W: Write + Seek>(
     out: &mut W,
-    (width, height): (u32, u32),
+    size: (u32, u32),
     pages: usize,
     deflate: bool,
     mut page: impl FnMut(usize, &mut [P]) -> Result<(), String>,
+) -> Result<(), String>
+where
+    [P]: TiffValue,
+{
+    write_stacks(
+        std::slice::from_mut(out),
+        size,
+        pages,
+        deflate,
+        |k, stacks| page(k, &mut stacks[0]),
+    )
+}
+
+/// [`write_pages`] for several stacks of the same size at once, one per writer of `outs`:
+/// `page(k, pages)` fills page `k` of every stack (`pages[i]` for `outs[i]`).
+pub fn write_stacks<P: Pixel, W: Write + Seek>(
+    outs: &mut [W],
+    (width, height): (u32, u32),
+    pages: usize,
+    deflate: bool,
+    mut page: impl FnMut(usize, &mut [Vec<P>]) -> Result<(), String>,
 ) -> Result<(), String>
 where
     [P]: TiffValue,
@@ -44,42 +65,61 @@ where
     // row, 16 bytes each): past 4 GiB less 16 MiB of that, BigTIFF.
     let bytes = u64::from(width) * u64::from(height) * pages as u64 * size_of::<P>() as u64
         + pages as u64 * (1024 + 16 * u64::from(height));
-    let tiff = |e: tiff::TiffError| format!("cannot write the TIFF: {e}");
     let compression = if deflate {
         Compression::Deflate(DeflateLevel::Fast)
     } else {
         Compression::Uncompressed
     };
     // Compressed pages can only be smaller: the raw size decides.
-    if bytes > CLASSIC_LIMIT {
-        let mut encoder = TiffEncoder::new_big(out)
-            .map_err(tiff)?
-            .with_compression(compression);
-        pages_into(&mut encoder, (width, height), pages, &mut page)
-    } else {
-        let mut encoder = TiffEncoder::new(out)
-            .map_err(tiff)?
-            .with_compression(compression);
-        pages_into(&mut encoder, (width, height), pages, &mut page)
-    }
-}
-
-fn pages_into<P: Pixel, W: Write + Seek, K: TiffKind>(
-    encoder: &mut TiffEncoder<W, K>,
-    (width, height): (u32, u32),
-    pages: usize,
-    page: &mut impl FnMut(usize, &mut [P]) -> Result<(), String>,
-) -> Result<(), String>
-where
-    [P]: TiffValue,
-{
-    let mut pixels = vec![P::default(); width as usize * height as usize];
+    let big = bytes > CLASSIC_LIMIT;
+    let mut encoders = outs
+        .iter_mut()
+        .map(|out| Encoder::new(out, big, compression))
+        .collect::<Result<Vec<_>, String>>()?;
+    let mut pixels = vec![vec![P::default(); width as usize * height as usize]; encoders.len()];
     for k in 0..pages {
         page(k, &mut pixels)?;
-        let written: TiffResult<()> = encoder.write_image::<P::Color>(width, height, &pixels);
-        written.map_err(|e| format!("cannot write the TIFF: {e}"))?;
+        for (encoder, px) in encoders.iter_mut().zip(&pixels) {
+            encoder.write(width, height, px)?;
+        }
     }
     Ok(())
+}
+
+/// A classic or BigTIFF encoder.
+enum Encoder<'a, W: Write + Seek> {
+    Classic(TiffEncoder<&'a mut W>),
+    Big(TiffEncoder<&'a mut W, TiffKindBig>),
+}
+
+impl<'a, W: Write + Seek> Encoder<'a, W> {
+    fn new(out: &'a mut W, big: bool, compression: Compression) -> Result<Self, String> {
+        let tiff = |e: tiff::TiffError| format!("cannot write the TIFF: {e}");
+        Ok(if big {
+            Encoder::Big(
+                TiffEncoder::new_big(out)
+                    .map_err(tiff)?
+                    .with_compression(compression),
+            )
+        } else {
+            Encoder::Classic(
+                TiffEncoder::new(out)
+                    .map_err(tiff)?
+                    .with_compression(compression),
+            )
+        })
+    }
+
+    fn write<P: Pixel>(&mut self, width: u32, height: u32, px: &[P]) -> Result<(), String>
+    where
+        [P]: TiffValue,
+    {
+        let written: TiffResult<()> = match self {
+            Encoder::Classic(e) => e.write_image::<P::Color>(width, height, px),
+            Encoder::Big(e) => e.write_image::<P::Color>(width, height, px),
+        };
+        written.map_err(|e| format!("cannot write the TIFF: {e}"))
+    }
 }
 
 /// Every page of a grayscale `float32` or `uint32` stack: `(width, height, pages)`, the

@@ -142,6 +142,8 @@ pub struct Projector<'a> {
     setup: &'a CtSetup,
     /// The solids' bounds, grown a little: parallel rays start on them.
     bounds: Aabb,
+    /// Materials whose mean path lengths go into stacks of their own beside the quantity's.
+    lengths: Vec<u32>,
 }
 
 impl<'a> Projector<'a> {
@@ -162,32 +164,68 @@ impl<'a> Projector<'a> {
             world,
             setup,
             bounds,
+            lengths: Vec::new(),
         }
+    }
+
+    /// Also the mean path length through each of `materials` (indices into the world's), from
+    /// the same rays: stacks `1..` of [`Self::project_all`] and [`Self::write_stacks`].
+    pub fn with_lengths(mut self, materials: Vec<u32>) -> Self {
+        self.lengths = materials;
+        self
     }
 
     /// Projection `view` (an index into the scanner's views): `rows x columns` values, row
     /// after row, into `out`. The values do not depend on the thread count.
     pub fn project(&self, view: usize, out: &mut [f32]) {
+        let mut outs = vec![Vec::new(); 1 + self.lengths.len()];
+        self.project_all(view, &mut outs);
+        out.copy_from_slice(&outs[0]);
+    }
+
+    /// Projection `view` into `outs[0]` and, into `outs[1 + i]`, the mean path length through
+    /// material `i` of [`Self::with_lengths`] (each `rows x columns`, resized to fit).
+    pub fn project_all(&self, view: usize, outs: &mut [Vec<f32>]) {
         let scanner = &self.setup.scanner;
-        let columns = scanner.columns as usize;
+        let (columns, rows) = (scanner.columns as usize, scanner.rows as usize);
+        let stacks = 1 + self.lengths.len();
         assert_eq!(
-            out.len(),
-            columns * scanner.rows as usize,
-            "one value per pixel"
+            outs.len(),
+            stacks,
+            "the quantity and each material's lengths"
         );
         let view = &scanner.views[view];
         let materials = self.world.materials.len();
-        out.par_chunks_mut(columns).enumerate().for_each_init(
-            || (Buffers::default(), vec![0.0; materials]),
-            |(buf, lengths), (row, values)| {
-                for (column, value) in values.iter_mut().enumerate() {
-                    *value = self.pixel(view, row as u32, column as u32, buf, lengths) as f32;
-                }
-            },
-        );
+        // Rows in parallel, each pixel's values for every stack side by side.
+        let mut all = vec![0.0f32; rows * columns * stacks];
+        all.par_chunks_mut(columns * stacks)
+            .enumerate()
+            .for_each_init(
+                || {
+                    (
+                        Buffers::default(),
+                        vec![0.0; materials],
+                        vec![0.0; stacks - 1],
+                    )
+                },
+                |(buf, lengths, means), (row, values)| {
+                    for (column, px) in values.chunks_mut(stacks).enumerate() {
+                        px[0] =
+                            self.pixel(view, row as u32, column as u32, buf, lengths, means) as f32;
+                        for (p, m) in px[1..].iter_mut().zip(means.iter()) {
+                            *p = *m as f32;
+                        }
+                    }
+                },
+            );
+        for (i, out) in outs.iter_mut().enumerate() {
+            out.clear();
+            out.extend(all.iter().skip(i).step_by(stacks));
+        }
     }
 
-    /// One pixel's value.
+    /// One pixel's value, and into `means` the mean lengths of [`Self::with_lengths`]'s
+    /// materials.
     fn pixel(
         &self,
         view: &View,
@@ -195,15 +233,20 @@ impl<'a> Projector<'a> {
         column: u32,
         buf: &mut Buffers,
         lengths: &mut [f64],
+        means: &mut [f64],
     ) -> f64 {
         let scanner = &self.setup.scanner;
         let n = scanner.samples();
         let mut length = 0.0;
         let mut transmission = LogSum::default();
+        means.fill(0.0);
         for s in 0..n {
             match self.ray(view, row, column, s) {
                 Some(ray) => material_lengths(self.world, &ray, buf, lengths),
                 None => lengths.fill(0.0),
+            }
+            for (mean, &m) in means.iter_mut().zip(&self.lengths) {
+                *mean += lengths[m as usize];
             }
             match self.setup.quantity {
                 Quantity::Length => {
@@ -214,6 +257,9 @@ impl<'a> Projector<'a> {
                 }
                 _ => self.world.attenuation.add_ray(lengths, &mut transmission),
             }
+        }
+        for mean in means.iter_mut() {
+            *mean /= f64::from(n);
         }
         let absorbance = f64::from(n).ln() - transmission.ln();
         match self.setup.quantity {
@@ -240,22 +286,23 @@ impl<'a> Projector<'a> {
 }
 
 impl Projector<'_> {
-    /// Writes views `views` of the scan to `out` as a `float32` TIFF stack (page `k` is view
-    /// `views.start + k`), computing one view at a time; `progress(n)` after each of the `n`.
-    pub fn write_stack<W: std::io::Write + std::io::Seek>(
+    /// Writes views `views` of the scan as `float32` TIFF stacks, computing one view at a time
+    /// (page `k` is view `views.start + k`): the quantity to `outs[0]`, material `i`'s lengths
+    /// of [`Self::with_lengths`] to `outs[1 + i]`; `progress(n)` after each of the `n` views.
+    pub fn write_stacks<W: std::io::Write + std::io::Seek>(
         &self,
-        out: &mut W,
+        outs: &mut [W],
         views: Range<usize>,
         progress: impl Fn(usize),
     ) -> Result<(), String> {
         let s = &self.setup.scanner;
-        crate::formats::tiff::write_pages::<f32, _>(
-            out,
+        crate::formats::tiff::write_stacks::<f32, _>(
+            outs,
             (s.columns, s.rows),
             views.len(),
             false,
-            |k, page| {
-                self.project(views.start + k, page);
+            |k, pages| {
+                self.project_all(views.start + k, pages);
                 progress(k + 1);
                 Ok(())
             },
