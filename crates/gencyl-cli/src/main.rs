@@ -649,15 +649,24 @@ fn ct_command(args: CtArgs) -> Result<()> {
         used.sort_unstable();
         used.dedup();
         let stem = args.output.with_extension("");
-        let length_paths: Vec<PathBuf> = used
+        // Each material's name as a file name: letters, digits, `-` and `_` kept, the rest `_`,
+        // and the material's number added where two names would then be one.
+        let file_names: Vec<String> = used
             .iter()
             .map(|&m| {
-                // The name as a file name: letters, digits, `-` and `_` kept, the rest `_`.
-                let name: String = world.materials[m as usize]
+                world.materials[m as usize]
                     .name
                     .chars()
                     .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
-                    .collect();
+                    .collect()
+            })
+            .collect();
+        let length_paths: Vec<PathBuf> = file_names
+            .iter()
+            .zip(&used)
+            .map(|(name, m)| {
+                let clash = file_names.iter().filter(|n| *n == name).count() > 1;
+                let name = if clash { format!("{name}-{m}") } else { name.clone() };
                 PathBuf::from(format!("{}.length.{name}.tif", stem.display()))
             })
             .collect();
