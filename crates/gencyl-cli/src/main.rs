@@ -968,6 +968,19 @@ fn merge_command(args: MergeArgs) -> Result<()> {
     Ok(())
 }
 
+/// Overrides a yarn's or a ply's defaults with the options they share (the two specs have
+/// these fields by the same names).
+macro_rules! set_common {
+    ($spec:ident, $c:expr) => {
+        set(&mut $spec.radius_sd, $c.radius_sd);
+        set(&mut $spec.aspect, $c.aspect);
+        set(&mut $spec.aspect_sd, $c.aspect_sd);
+        set(&mut $spec.segments, $c.segments);
+        set(&mut $spec.seed, $c.seed);
+        set(&mut $spec.material, $c.material.clone());
+    };
+}
+
 fn generate_command(args: GenerateArgs) -> Result<()> {
     match args.kind {
         None => generate_hair(args.hair),
@@ -982,13 +995,7 @@ fn generate_command(args: GenerateArgs) -> Result<()> {
             set(&mut spec.section_twist, y.section_twist);
             set(&mut spec.migration, y.migration);
             set(&mut spec.migration_period, y.migration_period);
-            let c = &y.common;
-            set(&mut spec.radius_sd, c.radius_sd);
-            set(&mut spec.aspect, c.aspect);
-            set(&mut spec.aspect_sd, c.aspect_sd);
-            set(&mut spec.segments, c.segments);
-            set(&mut spec.seed, c.seed);
-            set(&mut spec.material, c.material.clone());
+            set_common!(spec, y.common);
             write_phantom(&y.common, "yarn.toml", || phantom::generate_yarn(&spec))
         }
         Some(GenerateKind::Ply(p)) => {
@@ -1004,13 +1011,7 @@ fn generate_command(args: GenerateArgs) -> Result<()> {
             set(&mut spec.radius, p.radius);
             set(&mut spec.waviness, p.waviness);
             set(&mut spec.waviness_period, p.waviness_period);
-            let c = &p.common;
-            set(&mut spec.radius_sd, c.radius_sd);
-            set(&mut spec.aspect, c.aspect);
-            set(&mut spec.aspect_sd, c.aspect_sd);
-            set(&mut spec.segments, c.segments);
-            set(&mut spec.seed, c.seed);
-            set(&mut spec.material, c.material.clone());
+            set_common!(spec, p.common);
             write_phantom(&p.common, "ply.toml", || phantom::generate_ply(&spec))
         }
     }

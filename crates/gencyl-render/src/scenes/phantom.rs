@@ -444,6 +444,27 @@ struct ShapeParams {
     section_twist: f64,
 }
 
+impl ShapeParams {
+    /// Checks the shape settings a yarn and a ply share (`w` names which).
+    fn validate(&self, w: &str) -> Result<(), String> {
+        positive(w, "radius", self.radius)?;
+        in_range(w, "radius_sd", self.radius_sd, 0.0, 0.3)?;
+        check(self.aspect > 0.0 && self.aspect <= 1.0, w, || {
+            format!("aspect must be in (0, 1], got {}", self.aspect)
+        })?;
+        in_range(w, "aspect_sd", self.aspect_sd, 0.0, 0.3)?;
+        in_range(w, "section_twist", self.section_twist, -1e5, 1e5)
+    }
+}
+
+/// Checks the segment count and material name a yarn and a ply share.
+fn check_segments_and_material(w: &str, segments: usize, material: &str) -> Result<(), String> {
+    check(segments <= MAX_SEGMENTS, w, || {
+        format!("segments must be at most {MAX_SEGMENTS}, got {segments}")
+    })?;
+    check_material(w, material)
+}
+
 fn draw_shape(p: &ShapeParams, rng: &mut Rng) -> Shape {
     let a = p.radius * (1.0 + p.radius_sd * normal(rng));
     let e = (p.aspect * (1.0 + p.aspect_sd * normal(rng))).clamp(0.05, 1.0);
@@ -1416,34 +1437,33 @@ fn finish(
 // The yarn.
 
 impl YarnSpec {
+    /// The fibers' shape settings.
+    fn shape(&self) -> ShapeParams {
+        ShapeParams {
+            radius: self.radius,
+            radius_sd: self.radius_sd,
+            aspect: self.aspect,
+            aspect_sd: self.aspect_sd,
+            section_twist: self.section_twist,
+        }
+    }
+
     fn validate(&self) -> Result<(), String> {
         let w = "yarn";
         check((1..=MAX_FIBERS).contains(&self.fibers), w, || {
             format!("fibers must be 1 to {MAX_FIBERS}, got {}", self.fibers)
         })?;
         positive(w, "length", self.length)?;
-        positive(w, "radius", self.radius)?;
         in_range(w, "twist_deg", self.twist_deg, -45.0, 45.0)?;
         check(self.packing > 0.0 && self.packing < 1.0, w, || {
             format!("packing must be in (0, 1), got {}", self.packing)
         })?;
-        in_range(w, "radius_sd", self.radius_sd, 0.0, 0.3)?;
-        check(self.aspect > 0.0 && self.aspect <= 1.0, w, || {
-            format!("aspect must be in (0, 1], got {}", self.aspect)
-        })?;
-        in_range(w, "aspect_sd", self.aspect_sd, 0.0, 0.3)?;
-        in_range(w, "section_twist", self.section_twist, -1e5, 1e5)?;
+        self.shape().validate(w)?;
         in_range(w, "migration", self.migration, 0.0, 0.25)?;
         if self.migration > 0.0 {
             positive(w, "migration_period", self.migration_period)?;
         }
-        check(self.segments <= MAX_SEGMENTS, w, || {
-            format!(
-                "segments must be at most {MAX_SEGMENTS}, got {}",
-                self.segments
-            )
-        })?;
-        check_material(w, &self.material)
+        check_segments_and_material(w, self.segments, &self.material)
     }
 }
 
@@ -1457,13 +1477,7 @@ pub fn generate_yarn(spec: &YarnSpec) -> Result<Phantom, String> {
     let n = spec.fibers;
     let len = spec.length;
     let mut rng = Rng::from_seed(spec.seed);
-    let params = ShapeParams {
-        radius: spec.radius,
-        radius_sd: spec.radius_sd,
-        aspect: spec.aspect,
-        aspect_sd: spec.aspect_sd,
-        section_twist: spec.section_twist,
-    };
+    let params = spec.shape();
     let shapes: Vec<Shape> = (0..n).map(|_| draw_shape(&params, &mut rng)).collect();
     let a: Vec<f64> = shapes.iter().map(|s| s.a).collect();
     let tan = spec.twist_deg.to_radians().tan();
@@ -1606,6 +1620,18 @@ pub fn generate_yarn(spec: &YarnSpec) -> Result<Phantom, String> {
 // The ply.
 
 impl PlySpec {
+    /// The fibers' shape settings (no section twist: a ply's fibers are straight or gently
+    /// wavy).
+    fn shape(&self) -> ShapeParams {
+        ShapeParams {
+            radius: self.radius,
+            radius_sd: self.radius_sd,
+            aspect: self.aspect,
+            aspect_sd: self.aspect_sd,
+            section_twist: 0.0,
+        }
+    }
+
     fn validate(&self) -> Result<(), String> {
         let w = "ply";
         check(self.fibers <= MAX_FIBERS, w, || {
@@ -1614,18 +1640,13 @@ impl PlySpec {
         positive(w, "length", self.length)?;
         positive(w, "width", self.width)?;
         positive(w, "thickness", self.thickness)?;
-        positive(w, "radius", self.radius)?;
         check(self.packing >= 0.0 && self.packing < 1.0, w, || {
             format!("packing must be in [0, 1), got {}", self.packing)
         })?;
         check((self.fibers == 0) != (self.packing == 0.0), w, || {
             "give either fibers or packing, and 0 for the other".into()
         })?;
-        in_range(w, "radius_sd", self.radius_sd, 0.0, 0.3)?;
-        check(self.aspect > 0.0 && self.aspect <= 1.0, w, || {
-            format!("aspect must be in (0, 1], got {}", self.aspect)
-        })?;
-        in_range(w, "aspect_sd", self.aspect_sd, 0.0, 0.3)?;
+        self.shape().validate(w)?;
         in_range(w, "waviness", self.waviness, 0.0, 1e3)?;
         if self.waviness > 0.0 {
             positive(w, "waviness_period", self.waviness_period)?;
@@ -1638,13 +1659,7 @@ impl PlySpec {
                 )
             })?;
         }
-        check(self.segments <= MAX_SEGMENTS, w, || {
-            format!(
-                "segments must be at most {MAX_SEGMENTS}, got {}",
-                self.segments
-            )
-        })?;
-        check_material(w, &self.material)
+        check_segments_and_material(w, self.segments, &self.material)
     }
 }
 
@@ -1657,13 +1672,7 @@ pub fn generate_ply(spec: &PlySpec) -> Result<Phantom, String> {
     let len = spec.length;
     let (hw, ht) = (0.5 * spec.width, 0.5 * spec.thickness);
     let mut rng = Rng::from_seed(spec.seed);
-    let params = ShapeParams {
-        radius: spec.radius,
-        radius_sd: spec.radius_sd,
-        aspect: spec.aspect,
-        aspect_sd: spec.aspect_sd,
-        section_twist: 0.0,
-    };
+    let params = spec.shape();
     let amp = spec.waviness * spec.radius;
     let kappa = if amp > 0.0 {
         TAU / spec.waviness_period

@@ -254,13 +254,14 @@ impl Goniometer {
                 .par_iter()
                 .map(|&block| {
                     let mut tally = Tally::new();
+                    let mut stack = Vec::new();
                     for k in block * BLOCK..((block + 1) * BLOCK).min(self.rays) {
                         let mut rng = SampleRng::new(k as u32, (k >> 32) as u32, 0, self.seed);
                         let h = width * (2.0 * (k as f64 + rng.uniform()) / self.rays as f64 - 1.0);
                         // Outside the section whatever the incidence: 4 radii off the axis
                         // across it (the ray's run across the normal plane is cos(theta_i)).
                         let origin = h * e - (4.0 / self.theta_i.cos()) * d;
-                        self.trace(&fiber, Ray::new(origin, d), &mut tally);
+                        self.trace(&fiber, Ray::new(origin, d), &mut stack, &mut tally);
                     }
                     tally
                 })
@@ -301,19 +302,26 @@ impl Goniometer {
         (w * 1.001).min(1.0 + 1e-3)
     }
 
-    /// One ray and all its branches.
-    fn trace(&self, fiber: &GeneralizedCylinder, ray: Ray, tally: &mut Tally) {
+    /// One ray and all its branches (`stack`: the branches to follow, empty between rays,
+    /// reused).
+    fn trace(
+        &self,
+        fiber: &GeneralizedCylinder,
+        ray: Ray,
+        stack: &mut Vec<Branch>,
+        tally: &mut Tally,
+    ) {
         let Some(first) = fiber.intersect(&ray, 0.0, f64::INFINITY) else {
             return;
         };
         tally.hits += 1;
-        let mut stack = vec![Branch {
+        stack.push(Branch {
             ray,
             power: 1.0,
             order: 0,
             inside: false,
             hit: Some(first),
-        }];
+        });
         while let Some(b) = stack.pop() {
             let hit = b
                 .hit
@@ -353,7 +361,7 @@ impl Goniometer {
             // A tilted normal can send a branch to the wrong side of the true surface (grazing
             // light on the scales): it is counted as lost rather than traced as what it is not.
             if reflected.ray.dir.dot(geometric) > 0.0 {
-                reflected.queue(&mut stack, tally);
+                reflected.queue(stack, tally);
             } else {
                 tally.lost += reflected.power;
             }
@@ -369,7 +377,7 @@ impl Goniometer {
                     inside: !b.inside,
                     hit: None,
                 };
-                refracted.queue(&mut stack, tally);
+                refracted.queue(stack, tally);
             }
         }
     }
