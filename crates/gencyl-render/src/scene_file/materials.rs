@@ -3,12 +3,16 @@
 
 use std::collections::BTreeMap;
 use std::ops::Range;
+use std::sync::Arc;
 
 use glam::DVec3;
 use serde::Deserialize;
 use toml::Spanned;
 
 use super::values::*;
+use gencyl::{GeneralizedCylinder, Section};
+
+use crate::optics::material::exact::{ExactSection, SectionShape};
 use crate::optics::material::hair::HairParams;
 use crate::optics::material::{Material, SceneMaterial};
 
@@ -52,6 +56,7 @@ pub(super) struct RawMaterial {
     pub(super) beta_m: Option<Spanned<f64>>,
     pub(super) beta_n: Option<Spanned<f64>>,
     pub(super) alpha: Option<Spanned<f64>>,
+    pub(super) section: Option<Spanned<String>>,
     pub(super) xray_mu: Option<Spanned<Numbers>>,
 }
 
@@ -77,6 +82,7 @@ pub(super) fn build_material(
             "beta_m",
             "beta_n",
             "alpha",
+            "section",
         ],
         "dielectric" => &["eta", "sigma_a"],
         other => {
@@ -102,6 +108,7 @@ pub(super) fn build_material(
             ("beta_m", span_of(&m.beta_m)),
             ("beta_n", span_of(&m.beta_n)),
             ("alpha", span_of(&m.alpha)),
+            ("section", span_of(&m.section)),
         ],
         allowed,
         &format!("a {kind} material"),
@@ -182,7 +189,22 @@ pub(super) fn build_material(
             } else {
                 HairParams::from_melanin(eta, 1.3, 0.0, beta_m, beta_n, alpha)
             };
-            Material::Hair(params)
+            match &m.section {
+                None => Material::Hair(params),
+                Some(s) => match s.get_ref().as_str() {
+                    "circular" => Material::Hair(params),
+                    "exact" => Material::ExactHair {
+                        params,
+                        tables: None,
+                    },
+                    other => {
+                        return Err((
+                            s.span(),
+                            format!("section must be \"circular\" or \"exact\", got {other:?}"),
+                        ));
+                    }
+                },
+            }
         }
         _ => Material::Dielectric {
             eta: match &m.eta {
@@ -265,4 +287,65 @@ impl Materials {
                 )
             })
     }
+}
+
+/// Builds the tables of every `section = "exact"` hair material from the sections of the
+/// fibers that use it: one section shape per material (an ellipse of any aspect, or one
+/// profile), tables over the range of aspects the fibers reach (at their ends: `B / A` is
+/// monotone between). `span` locates a material's table for errors.
+pub(super) fn build_exact_tables(
+    materials: &mut [SceneMaterial],
+    cylinders: &[GeneralizedCylinder],
+    cylinder_materials: &[u32],
+    span: impl Fn(&str) -> Range<usize>,
+) -> Result<(), Problem> {
+    for (index, m) in materials.iter_mut().enumerate() {
+        let Material::ExactHair {
+            params,
+            ref mut tables,
+        } = m.material
+        else {
+            continue;
+        };
+        let mut shape: Option<SectionShape> = None;
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (c, _) in cylinders
+            .iter()
+            .zip(cylinder_materials)
+            .filter(|(_, k)| **k as usize == index)
+        {
+            let this = match c.section() {
+                Section::Circle(_) => SectionShape::Ellipse,
+                Section::Loop(l) => SectionShape::Profile(
+                    l.pieces().iter().flat_map(|p| [p[0], p[1], p[2]]).collect(),
+                ),
+            };
+            if shape.as_ref().is_some_and(|s| *s != this) {
+                return Err((
+                    span(&m.name),
+                    format!(
+                        "material `{}` has section = \"exact\" and is used by fibers of different section shapes (an ellipse and a profile, or two profiles): give each shape its own material",
+                        m.name
+                    ),
+                ));
+            }
+            let sweep = c.sweep();
+            for end in 0..2 {
+                let (a, b) = (sweep.major[end], sweep.minor[end]);
+                let aspect = match this {
+                    SectionShape::Ellipse => a.min(b) / a.max(b),
+                    SectionShape::Profile(_) => b / a,
+                };
+                lo = lo.min(aspect);
+                hi = hi.max(aspect);
+            }
+            shape = Some(this);
+        }
+        if let Some(shape) = shape {
+            let built = ExactSection::build(shape, lo, hi, &params)
+                .map_err(|e| (span(&m.name), format!("{e} (material `{}`)", m.name)))?;
+            *tables = Some(Arc::new(built));
+        }
+    }
+    Ok(())
 }

@@ -97,7 +97,7 @@ use camera::{RawCamera, RawRender, build_camera, build_render};
 use ct::{RawCt, build_ct};
 use geometry::*;
 use lights::{RawEnvironment, RawLight, build_environment, build_light};
-use materials::{Materials, RawMaterial};
+use materials::{Materials, RawMaterial, build_exact_tables};
 use values::Problem;
 
 /// Why a scene file could not be loaded.
@@ -357,6 +357,12 @@ fn build(raw: &RawScene, base: &Path) -> Result<SceneDescription, Problem> {
         }
     }
     out.materials = materials.list;
+    build_exact_tables(
+        &mut out.materials,
+        &out.cylinders,
+        &out.cylinder_materials,
+        |name| raw.material.get(name).map_or(0..0, |m| m.span()),
+    )?;
     Ok(out)
 }
 

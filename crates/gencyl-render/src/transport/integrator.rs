@@ -168,18 +168,18 @@ fn radiance(
         if emission_only || depth == settings.max_depth {
             break;
         }
-        let material = world
+        let material = &world
             .material(h.surface)
             .expect("surfaces other than lights have materials")
             .material;
         // The segment just travelled was inside this solid if the ray now leaves it.
-        if let Material::Dielectric { sigma_a, .. } = material
+        if let Material::Dielectric { sigma_a, .. } = *material
             && h.normal.dot(ray.dir) > 0.0
         {
             beta *= (-sigma_a * h.t).exp();
         }
         let wo = -ray.dir;
-        let bsdf = Bsdf::new(&material, &world.shading_point(&h), wo);
+        let bsdf = Bsdf::new(material, &world.shading_point(&h), wo);
         if !bsdf.is_delta() && n_lights > 0 {
             l += beta * next_event(world, &h, &bsdf, wo, pick, rng, buf);
         }

@@ -1,13 +1,13 @@
 //! Everything a render needs besides the camera: the cylinders with their BVH, spheres,
 //! planes, emitting spheres, materials, lights and the environment; ray queries over all of it.
 
-use gencyl::{Aabb, Part, Ray};
+use gencyl::{Aabb, Frame, GeneralizedCylinder, Part, Ray, Section};
 use glam::DVec3;
 
 use crate::accel::shapes::{Plane, Sphere};
 use crate::accel::{Scene, SceneHit, Scratch};
 use crate::optics::light::{Environment, Light};
-use crate::optics::material::{Material, SceneMaterial, ShadingPoint};
+use crate::optics::material::{Material, SceneMaterial, SectionAt, ShadingPoint};
 use crate::scene_file::SceneDescription;
 use crate::transport::ct::Attenuation;
 
@@ -87,7 +87,12 @@ impl World {
         let far_field = desc
             .materials
             .iter()
-            .map(|m| matches!(m.material, Material::Hair(_) | Material::KajiyaKay { .. }))
+            .map(|m| {
+                matches!(
+                    m.material,
+                    Material::Hair(_) | Material::ExactHair { .. } | Material::KajiyaKay { .. }
+                )
+            })
             .collect();
         let attenuation = Attenuation::new(
             &desc.materials,
@@ -256,17 +261,44 @@ impl World {
         Some(&self.materials[i as usize])
     }
 
-    /// The shading geometry at a hit: the normal, and the fiber tangent for fibers.
+    /// The shading geometry at a hit: the normal, and for fibers the tangent and the section.
     pub fn shading_point(&self, h: &WorldHit) -> ShadingPoint {
-        let tangent = match h.surface {
-            Surface::Fiber { object, u, .. } => {
-                Some(self.scene.cylinders()[object as usize].frame(u).t)
-            }
-            _ => None,
+        let Surface::Fiber { object, u, .. } = h.surface else {
+            return ShadingPoint {
+                normal: h.normal,
+                tangent: None,
+                section: None,
+            };
         };
+        let c = &self.scene.cylinders()[object as usize];
+        let frame = c.frame(u);
         ShadingPoint {
             normal: h.normal,
-            tangent,
+            tangent: Some(frame.t),
+            section: Some(section_at(c, frame, u)),
         }
+    }
+}
+
+/// The section of fiber `c` at `u`: the sweep turns the section's first axis from `n` by
+/// `rho(u)` toward `b` and scales it by `A(u)`, the second by `B(u)`. For an ellipse the major
+/// axis is the longer of the two (`aspect = min / max`); for a profile the first axis, with
+/// `aspect = B / A`.
+pub fn section_at(c: &GeneralizedCylinder, frame: Frame, u: f64) -> SectionAt {
+    let sweep = c.sweep();
+    let rho = sweep.rotation[0] + (sweep.rotation[1] - sweep.rotation[0]) * u;
+    let (s, co) = rho.sin_cos();
+    let first = co * frame.n + s * frame.b;
+    let second = co * frame.b - s * frame.n;
+    let (a, b) = (sweep.major_at(u), sweep.minor_at(u));
+    match c.section() {
+        Section::Circle(_) if b > a => SectionAt {
+            major: second,
+            aspect: a / b,
+        },
+        _ => SectionAt {
+            major: first,
+            aspect: b / a,
+        },
     }
 }

@@ -135,14 +135,62 @@ pub struct HairBsdf {
     gamma_o: f64,
     eta: f64,
     sigma_a: DVec3,
+    lobes: Longitudinal,
+    /// Logistic scale.
+    s: f64,
+}
+
+/// Chiang et al.'s longitudinal lobes `M_p(θ_i; θ_o^p)`, shared by every hair model here.
+#[derive(Clone, Copy, Debug)]
+pub struct Longitudinal {
     /// Longitudinal variance per lobe.
     v: [f64; P_MAX + 1],
     /// `ln(1 / (2 v sinh(1/v)))` per lobe.
     m_norm: [f64; P_MAX + 1],
-    /// Logistic scale.
-    s: f64,
     /// `(sin, cos)` of the rotation of `θ_o` per lobe (cuticle tilt).
     tilt: [(f64, f64); P_MAX + 1],
+}
+
+impl Longitudinal {
+    /// The lobes of roughness `beta_m` and cuticle tilt `alpha`:
+    /// `v_0 = (0.726 β_m + 0.812 β_m² + 3.7 β_m^20)²`, `v_1 = v_0/4`, `v_2 = v_3 = 4 v_0`;
+    /// `θ_o` turned by `−2α, α, 4α, 0`.
+    pub fn new(beta_m: f64, alpha: f64) -> Self {
+        let bm = beta_m;
+        let v0 = (0.726 * bm + 0.812 * bm * bm + 3.7 * bm.powi(20)).powi(2);
+        let v = [v0, 0.25 * v0, 4.0 * v0, 4.0 * v0];
+        Longitudinal {
+            v,
+            m_norm: v.map(longitudinal_norm),
+            tilt: [-2.0 * alpha, alpha, 4.0 * alpha, 0.0].map(f64::sin_cos),
+        }
+    }
+
+    /// `(sin θ_o^p, |cos θ_o^p|)` per lobe for `(sin θ_o, cos θ_o)`.
+    pub fn turned(&self, sin_o: f64, cos_o: f64) -> [(f64, f64); P_MAX + 1] {
+        self.tilt
+            .map(|(sd, cd)| (sin_o * cd + cos_o * sd, (cos_o * cd - sin_o * sd).abs()))
+    }
+
+    /// `M_p(θ_i; θ_o^p)` for `(sin θ_i, cos θ_i)` and `turned = (sin θ_o^p, |cos θ_o^p|)`.
+    pub fn eval(&self, p: usize, sin_i: f64, cos_i: f64, turned: (f64, f64)) -> f64 {
+        let (sp, cp) = turned;
+        longitudinal(cos_i, cp, sin_i, sp, self.v[p], self.m_norm[p])
+    }
+
+    /// `(sin θ_i, cos θ_i)` of an exact vMF sample about the direction at `θ = −θ_o^p`:
+    /// `1 − cos ψ = −v ln(ξ + (1 − ξ) e^{−2/v})`, `ξ = 1 − u[0]`, and the cone's azimuth
+    /// `2π u[1]`.
+    pub fn sample(&self, p: usize, turned: (f64, f64), u: [f64; 2]) -> (f64, f64) {
+        let v = self.v[p];
+        let xi = 1.0 - u[0]; // (0, 1]
+        let one_minus_cos = (-v * (xi + (1.0 - xi) * (-2.0 / v).exp()).ln()).clamp(0.0, 2.0);
+        let cos_psi = 1.0 - one_minus_cos;
+        let sin_psi = safe_sqrt(one_minus_cos * (2.0 - one_minus_cos));
+        let (sp, cp) = turned;
+        let sin_i = (-cos_psi * sp + sin_psi * (TAU * u[1]).cos() * cp).clamp(-1.0, 1.0);
+        (sin_i, safe_sqrt(1.0 - sin_i * sin_i))
+    }
 }
 
 /// One importance sample of a [`HairBsdf`].
@@ -171,21 +219,13 @@ impl HairBsdf {
     /// The BSDF of `params` at azimuthal offset `h` (clamped to `[-1, 1]`; NaN reads as 0).
     pub fn new(params: &HairParams, h: f64) -> Self {
         let h = if h.is_nan() { 0.0 } else { h.clamp(-1.0, 1.0) };
-        let bm = params.beta_m;
-        let v0 = (0.726 * bm + 0.812 * bm * bm + 3.7 * bm.powi(20)).powi(2);
-        let bn = params.beta_n;
-        let s = (PI / 8.0).sqrt() * (0.265 * bn + 1.194 * bn * bn + 5.372 * bn.powi(22));
-        let a = params.alpha;
-        let v = [v0, 0.25 * v0, 4.0 * v0, 4.0 * v0];
         HairBsdf {
             h,
             gamma_o: h.asin(),
             eta: params.eta,
             sigma_a: params.sigma_a,
-            v,
-            m_norm: v.map(longitudinal_norm),
-            s,
-            tilt: [-2.0 * a, a, 4.0 * a, 0.0].map(f64::sin_cos),
+            lobes: Longitudinal::new(params.beta_m, params.alpha),
+            s: logistic_scale(params.beta_n),
         }
     }
 
@@ -219,15 +259,7 @@ impl HairBsdf {
         let lo: f64 = q[..p].iter().sum();
         let uc = ((u[0] - lo) / q[p]).clamp(0.0, 1.0 - f64::EPSILON);
 
-        // θ_i: vMF about the direction at θ = −θ_o^p; 1 − cos ψ = −v ln(ξ + (1 − ξ) e^{−2/v}).
-        let v = self.v[p];
-        let xi = 1.0 - u[1]; // (0, 1]
-        let one_minus_cos = (-v * (xi + (1.0 - xi) * (-2.0 / v).exp()).ln()).clamp(0.0, 2.0);
-        let cos_psi = 1.0 - one_minus_cos;
-        let sin_psi = safe_sqrt(one_minus_cos * (2.0 - one_minus_cos));
-        let (sp, cp) = o.rot[p];
-        let sin_i = (-cos_psi * sp + sin_psi * (TAU * u[2]).cos() * cp).clamp(-1.0, 1.0);
-        let cos_i = safe_sqrt(1.0 - sin_i * sin_i);
+        let (sin_i, cos_i) = self.lobes.sample(p, o.rot[p], [u[1], u[2]]);
 
         // φ_i: the lobe's azimuthal centre plus a trimmed logistic (uniform for p = 3).
         let dphi = if p < P_MAX {
@@ -294,9 +326,7 @@ impl HairBsdf {
         } else {
             [0.0; P_MAX + 1]
         };
-        let rot = self
-            .tilt
-            .map(|(sd, cd)| (sin_o * cd + cos_o * sd, (cos_o * cd - sin_o * sd).abs()));
+        let rot = self.lobes.turned(sin_o, cos_o);
         Outgoing {
             phi_o,
             gamma_t: sin_gt.asin(),
@@ -328,8 +358,7 @@ impl HairBsdf {
         let phi = wi.z.atan2(wi.y) - o.phi_o;
         let (mut f, mut pdf) = (DVec3::ZERO, 0.0);
         for p in 0..=P_MAX {
-            let (sp, cp) = o.rot[p];
-            let m = longitudinal(cos_i, cp, sin_i, sp, self.v[p], self.m_norm[p]);
+            let m = self.lobes.eval(p, sin_i, cos_i, o.rot[p]);
             let n = if p < P_MAX {
                 trimmed_logistic(phi - self.phi_center(p, o.gamma_t), self.s)
             } else {
@@ -357,6 +386,13 @@ pub fn azimuthal_offset(tangent: DVec3, normal: DVec3, wo: DVec3) -> f64 {
         return 0.0;
     }
     (x.dot(n.cross(w)) / (ln * lw)).clamp(-1.0, 1.0)
+}
+
+/// Chiang et al.'s logistic scale for azimuthal roughness `β_n`:
+/// `s = sqrt(π/8) (0.265 β_n + 1.194 β_n² + 5.372 β_n^22)`.
+pub fn logistic_scale(beta_n: f64) -> f64 {
+    let bn = beta_n;
+    (PI / 8.0).sqrt() * (0.265 * bn + 1.194 * bn * bn + 5.372 * bn.powi(22))
 }
 
 fn safe_sqrt(x: f64) -> f64 {
@@ -417,7 +453,7 @@ fn longitudinal(cos_i: f64, cos_o: f64, sin_i: f64, sin_o: f64, v: f64, norm: f6
 }
 
 /// The logistic of scale `s` trimmed to `[−π, π]`, at `x` wrapped into that range.
-fn trimmed_logistic(x: f64, s: f64) -> f64 {
+pub fn trimmed_logistic(x: f64, s: f64) -> f64 {
     let x = x - TAU * (x / TAU).round();
     let e = (-x.abs() / s).exp();
     e / (s * (1.0 + e) * (1.0 + e)) / (PI / (2.0 * s)).tanh()

@@ -6,17 +6,20 @@
 //! fiber's normal plane), so `L_o = ∫ eval(wo, wi) L_i dω_i`; `sample` returns
 //! `eval / pdf`. Directions point away from the surface (`wo` toward the viewer).
 
+pub mod exact;
 pub mod hair;
 
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 use glam::DVec3;
 
 use crate::sampling::{basis, cosine_hemisphere, uniform_sphere};
+use exact::{ExactHairBsdf, ExactSection};
 use hair::{HairBsdf, HairParams, azimuthal_offset};
 
 /// A scattering model with its parameters.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Material {
     /// Lambertian reflection on the exact surface normal (both sides).
     Diffuse {
@@ -36,6 +39,16 @@ pub enum Material {
     },
     /// The hair BSDF of Chiang et al. 2016 ([`hair`]).
     Hair(HairParams),
+    /// Hair whose azimuthal scattering is traced on its exact section ([`exact`]):
+    /// `section = "exact"`.
+    ExactHair {
+        /// `eta`, `sigma_a` (per unit of the section's bounding radius), `beta_m`, `beta_n`,
+        /// `alpha` as for [`Material::Hair`].
+        params: HairParams,
+        /// The tables, built when the scene is loaded over the sections of the fibers that use
+        /// the material (`None` when none does: then it shades as [`Material::Hair`]).
+        tables: Option<Arc<ExactSection>>,
+    },
     /// A smooth dielectric solid with interior absorption: Fresnel reflection and refraction
     /// at every boundary (side and caps), radiance falling as `exp(-sigma_a s)` along a path
     /// of length `s` inside.
@@ -78,6 +91,17 @@ impl Material {
                 }
             }
             Material::Hair(p) => p.validate(),
+            Material::ExactHair { params, .. } => {
+                params.validate()?;
+                if params.eta > 1.0 && params.eta <= 10.0 {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "section = \"exact\" needs eta in (1, 10], got {}",
+                        params.eta
+                    ))
+                }
+            }
             Material::Dielectric { eta, sigma_a } => {
                 if !(eta.is_finite() && eta >= 1.0) {
                     return Err(format!("eta must be finite and at least 1, got {eta}"));
@@ -107,6 +131,17 @@ pub struct ShadingPoint {
     pub normal: DVec3,
     /// Unit fiber tangent `t(u)`, for fibers.
     pub tangent: Option<DVec3>,
+    /// The fiber's section at the hit, for fibers.
+    pub section: Option<SectionAt>,
+}
+
+/// A fiber's section where a ray met it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SectionAt {
+    /// Unit direction of the section's major axis (across the tangent).
+    pub major: DVec3,
+    /// Minor / major radius (for a profile: its stretch across over along the major axis).
+    pub aspect: f64,
 }
 
 /// A sampled scattering direction.
@@ -122,7 +157,7 @@ pub struct BsdfSample {
 
 /// A material at a hit, in world space.
 #[derive(Clone, Copy, Debug)]
-pub enum Bsdf {
+pub enum Bsdf<'a> {
     /// Lambert about `n`, turned to the viewer's side.
     Diffuse {
         /// Albedo.
@@ -146,6 +181,13 @@ pub enum Bsdf {
     Hair {
         /// The BSDF with its `h`.
         bsdf: HairBsdf,
+        /// Local frame.
+        frame: [DVec3; 3],
+    },
+    /// The exact-section hair model in the same local frame as [`Bsdf::Hair`].
+    ExactHair {
+        /// The BSDF with its section.
+        bsdf: ExactHairBsdf<'a>,
         /// Local frame.
         frame: [DVec3; 3],
     },
@@ -188,9 +230,23 @@ pub fn refract(wo: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
     Some((-wo / eta + (cos_i / eta - cos_t) * n).normalize())
 }
 
-impl Bsdf {
+/// The local frame of the hair models at a hit: `x = -t` (from tip to root: with a positive
+/// cuticle tilt the R highlight then shifts toward the root, as Marschner et al. 2003
+/// measured), `z` the normal's part across the fiber, `y = z x x`.
+fn hair_frame(t: DVec3, normal: DVec3) -> [DVec3; 3] {
+    let x = -t;
+    let across = normal - normal.dot(x) * x;
+    let z = if across.length_squared() > 1e-24 {
+        across.normalize()
+    } else {
+        basis(x).0
+    };
+    [x, z.cross(x), z]
+}
+
+impl<'a> Bsdf<'a> {
     /// The material's BSDF at a hit seen from `wo`.
-    pub fn new(material: &Material, at: &ShadingPoint, wo: DVec3) -> Bsdf {
+    pub fn new(material: &'a Material, at: &ShadingPoint, wo: DVec3) -> Bsdf<'a> {
         let facing = if at.normal.dot(wo) < 0.0 {
             -at.normal
         } else {
@@ -214,23 +270,30 @@ impl Bsdf {
                     n: facing,
                 },
             },
-            Material::Hair(params) => match at.tangent {
-                // x points from tip to root: with a positive cuticle tilt the R highlight then
-                // shifts toward the root, as Marschner et al. 2003 measured.
+            Material::ExactHair {
+                ref params,
+                tables: Some(ref tables),
+            } => match (at.tangent, at.section) {
+                (Some(t), Some(section)) => {
+                    let frame = hair_frame(t, at.normal);
+                    let major = Self::to_local(&frame, section.major);
+                    Bsdf::ExactHair {
+                        bsdf: ExactHairBsdf::new(params, tables, section.aspect, major),
+                        frame,
+                    }
+                }
+                _ => Bsdf::Diffuse {
+                    albedo: DVec3::splat(0.5),
+                    n: facing,
+                },
+            },
+            Material::Hair(params) | Material::ExactHair { params, .. } => match at.tangent {
                 Some(t) => {
-                    let x = -t;
-                    // z: the normal's part across the fiber; y completes the frame.
-                    let across = at.normal - at.normal.dot(x) * x;
-                    let z = if across.length_squared() > 1e-24 {
-                        across.normalize()
-                    } else {
-                        basis(x).0
-                    };
-                    let y = z.cross(x);
-                    let h = azimuthal_offset(x, at.normal, wo);
+                    let frame = hair_frame(t, at.normal);
+                    let h = azimuthal_offset(frame[0], at.normal, wo);
                     Bsdf::Hair {
                         bsdf: HairBsdf::new(&params, h),
-                        frame: [x, y, z],
+                        frame,
                     }
                 }
                 // Hair on a non-fiber surface has no tangent: shade it as its colour.
@@ -272,6 +335,9 @@ impl Bsdf {
             Bsdf::Hair { ref bsdf, frame } => {
                 bsdf.eval(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
             }
+            Bsdf::ExactHair { ref bsdf, frame } => {
+                bsdf.eval(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
+            }
             Bsdf::Dielectric { .. } => DVec3::ZERO,
         }
     }
@@ -282,6 +348,9 @@ impl Bsdf {
             Bsdf::Diffuse { n, .. } => n.dot(wi).max(0.0) / PI,
             Bsdf::KajiyaKay { .. } => 1.0 / (4.0 * PI),
             Bsdf::Hair { ref bsdf, frame } => {
+                bsdf.pdf(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
+            }
+            Bsdf::ExactHair { ref bsdf, frame } => {
                 bsdf.pdf(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
             }
             Bsdf::Dielectric { .. } => 0.0,
@@ -309,6 +378,15 @@ impl Bsdf {
                     wi,
                     weight: self.eval(wo, wi) / pdf,
                     pdf,
+                })
+            }
+            Bsdf::ExactHair { ref bsdf, frame } => {
+                let s = bsdf.sample(Self::to_local(&frame, wo), u)?;
+                let wi = frame[0] * s.wi.x + frame[1] * s.wi.y + frame[2] * s.wi.z;
+                Some(BsdfSample {
+                    wi,
+                    weight: s.weight,
+                    pdf: s.pdf,
                 })
             }
             Bsdf::Hair { ref bsdf, frame } => {
@@ -402,6 +480,7 @@ mod tests {
         let at = ShadingPoint {
             normal: DVec3::new(0.3, 0.9, 0.1).normalize(),
             tangent: Some(DVec3::new(1.0, -0.3, 0.0).normalize()),
+            section: None,
         };
         let wo = DVec3::new(0.2, 0.5, 0.8).normalize();
         for m in [
