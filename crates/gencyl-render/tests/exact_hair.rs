@@ -9,6 +9,7 @@
 //! the dielectric's specular paths can reach it.
 
 use gencyl::Ray;
+use gencyl_render::accel::Scratch;
 use gencyl_render::optics::Camera;
 use gencyl_render::sampling::SampleRng;
 use gencyl_render::scene_file::SceneDescription;
@@ -155,4 +156,47 @@ fn a_round_exact_fiber_renders_as_chiangs() {
             );
         }
     }
+}
+
+/// The section the material reads at a hit: its major axis is where the solid reaches
+/// farthest from the axis (checked by rays toward the axis along it and across it), and its
+/// aspect the ratio of the two reaches, for a section whose minor radius is the larger one.
+#[test]
+fn the_section_at_a_hit_is_the_solids() {
+    let rho: f64 = 0.3;
+    let src = format!(
+        "[[cylinder]]\nbezier = [[-2, 0, 0], [-1, 0, 0], [1, 0, 0], [2, 0, 0]]\n\
+         major_radius = [0.5, 0.5]\nminor_radius = [1, 1]\nrotation = [{rho}, {rho}]\n\
+         normal_hint = [0, 1, 0]\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n"
+    );
+    let desc = SceneDescription::parse(&src, "s.toml").unwrap();
+    let w = World::new(desc);
+    let mut buf = Scratch::default();
+    let reach = |dir: DVec3, buf: &mut Scratch| {
+        let ray = Ray::new(10.0 * dir + DVec3::new(0.1, 0.0, 0.0), -dir);
+        let h = w.intersect(&ray, 0.0, f64::INFINITY, buf).unwrap();
+        (h, (h.point - DVec3::new(0.1, 0.0, 0.0)).length())
+    };
+    let (hit, _) = reach(DVec3::Z, &mut buf);
+    let s = w.shading_point(&hit).section.expect("a fiber's section");
+    assert!(s.major.x.abs() < 1e-12 && (s.major.length() - 1.0).abs() < 1e-12);
+    let minor = DVec3::X.cross(s.major);
+    let (_, long) = reach(s.major, &mut buf);
+    let (_, short) = reach(minor, &mut buf);
+    assert!(
+        (long - 1.0).abs() < 1e-9,
+        "reach along the major axis {long}"
+    );
+    assert!(
+        (short - 0.5).abs() < 1e-9,
+        "reach along the minor axis {short}"
+    );
+    assert!(
+        (s.aspect - short / long).abs() < 1e-9,
+        "aspect {}",
+        s.aspect
+    );
+    // The frame's n = +y turned by rho toward +z is the section's first (here shorter) axis.
+    let first = DVec3::new(0.0, rho.cos(), rho.sin());
+    assert!(s.major.dot(first).abs() < 1e-12);
 }

@@ -4,6 +4,7 @@ use gencyl::Section;
 use glam::DVec3;
 
 use super::*;
+use crate::optics::material::Material;
 use crate::optics::{Environment, Light, Projection};
 use crate::settings::{Integrator, RenderTable};
 
@@ -537,4 +538,61 @@ fn strand_frame_key_chooses_the_framing() {
         );
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `section = "exact"`: its values and errors, and the tables it builds from the fibers.
+#[test]
+fn exact_hair_sections_are_checked_and_tabulated() {
+    let strand =
+        "[[strand]]\npoints = [[0, 0, 0], [0, 1, 0]]\nradius = [0.05, 0.05]\nmaterial = \"m\"\n";
+    let loop_strand = format!(
+        "{strand}profile = [[1, 0], [1, 0.5], [0.5, 1], [0, 1], [-0.5, 1], [-1, 0.5], [-1, 0], [-1, -0.5], [-0.5, -1], [0, -1], [0.5, -1], [1, -0.5]]\n"
+    );
+    let cases: &[(String, &str)] = &[
+        (
+            "[material.m]\ntype = \"hair\"\nsection = \"round\"\n".into(),
+            "s.toml:3:11: section must be \"circular\" or \"exact\", got \"round\"",
+        ),
+        (
+            "[material.m]\ntype = \"diffuse\"\nsection = \"exact\"\n".into(),
+            "s.toml:3:11: `section` does not apply to a diffuse material",
+        ),
+        (
+            "[material.m]\ntype = \"hair\"\nsection = \"exact\"\neta = 20\n".into(),
+            "s.toml:1:1: section = \"exact\" needs eta in (1, 10], got 20",
+        ),
+        (
+            format!("{strand}{loop_strand}[material.m]\ntype = \"hair\"\nsection = \"exact\"\n"),
+            "s.toml:10:1: material `m` has section = \"exact\" and is used by fibers of different section shapes",
+        ),
+    ];
+    expect_errors(cases);
+    // Round strands: one table at aspect 1; `circular` is Chiang's model.
+    let round =
+        format!("{strand}[material.m]\ntype = \"hair\"\nsection = \"exact\"\nsigma_a = 0.3\n");
+    let d = SceneDescription::parse(&round, "s.toml").unwrap();
+    let m = d.materials.iter().find(|m| m.name == "m").unwrap();
+    match &m.material {
+        Material::ExactHair {
+            tables: Some(t), ..
+        } => {
+            assert_eq!(t.nodes.len(), 1);
+            assert_eq!(t.nodes[0].0, 1.0);
+        }
+        other => panic!("{other:?}"),
+    }
+    let chiang = SceneDescription::parse(
+        &format!("{strand}[material.m]\ntype = \"hair\"\nsection = \"circular\"\n"),
+        "s.toml",
+    )
+    .unwrap();
+    assert!(matches!(
+        chiang
+            .materials
+            .iter()
+            .find(|m| m.name == "m")
+            .unwrap()
+            .material,
+        Material::Hair(_)
+    ));
 }
