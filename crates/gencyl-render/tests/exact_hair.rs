@@ -40,7 +40,7 @@ fn scene(b: f64, rotation: f64, light: f64, material: &str) -> (World, Camera) {
         d * l.sin()
     );
     let desc = SceneDescription::parse(&src, "exact.toml").unwrap_or_else(|e| panic!("{e}"));
-    let cam = desc.camera.clone().expect("a camera");
+    let cam = desc.camera.expect("a camera");
     (World::new(desc), cam)
 }
 
