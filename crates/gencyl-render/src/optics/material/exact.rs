@@ -36,7 +36,9 @@ use std::time::Instant;
 
 use glam::{DVec2, DVec3};
 
-use super::hair::{HairParams, HairSample, Longitudinal, P_MAX, logistic_scale, trimmed_logistic};
+use super::hair::{
+    HairParams, HairSample, Longitudinal, P_MAX, logistic_scale, pick_rescaled, trimmed_logistic,
+};
 use crate::transport::scatter::{FiberSection, Goniometer};
 
 /// Orders tabulated: R, TT, TRT and the rest.
@@ -89,6 +91,13 @@ struct Corner<'a> {
     row: usize,
     weight: f64,
     mirror: bool,
+}
+
+impl Corner<'_> {
+    /// The row's weighted power in order `p` (channel mean).
+    fn power(&self, p: usize) -> f64 {
+        self.weight * self.table.totals[self.row * ORDERS + p].element_sum() / 3.0
+    }
 }
 
 impl AzimuthalTable {
@@ -386,12 +395,7 @@ impl<'a> ExactHairBsdf<'a> {
         let corners = self
             .section
             .corners(self.aspect, sin_o.asin(), phi_o - self.phi_major);
-        let lobe = std::array::from_fn(|p| {
-            corners
-                .iter()
-                .map(|c| c.weight * c.table.totals[c.row * ORDERS + p].element_sum() / 3.0)
-                .sum()
-        });
+        let lobe = std::array::from_fn(|p| corners.iter().map(|c| c.power(p)).sum());
         Outgoing {
             phi_o,
             turned: self.lobes.turned(sin_o, cos_o),
@@ -415,40 +419,35 @@ impl<'a> ExactHairBsdf<'a> {
         }
         let sin_i = wi.x.clamp(-1.0, 1.0);
         let cos_i = (1.0 - sin_i * sin_i).max(0.0).sqrt();
-        let phi = o.phi_o - wi.z.atan2(wi.y);
-        let per_radian = BINS as f64 / TAU;
+        let terms = Self::terms(o, wi);
         let (mut f, mut pdf) = (DVec3::ZERO, 0.0);
-        for p in 0..ORDERS {
-            let mut s = DVec3::ZERO;
-            for c in &o.corners {
-                if c.weight > 0.0 {
-                    let k = Self::bin(phi, c.mirror);
-                    s += c.weight * c.table.values[(c.row * ORDERS + p) * BINS + k];
-                }
-            }
+        for (p, s) in terms.into_iter().enumerate() {
             let m = self.lobes.eval(p, sin_i, cos_i, o.turned[p]);
-            f += m * per_radian * s;
-            pdf += m * per_radian * s.element_sum() / 3.0 / o.total;
+            f += m * s;
+            pdf += m * s.element_sum() / 3.0 / o.total;
         }
         (f, pdf)
+    }
+
+    /// `S_p(φ) / Δφ` per order at `wi`: the corners' rows, weighted, at the bin of `φ`.
+    fn terms(o: &Outgoing, wi: DVec3) -> [DVec3; ORDERS] {
+        let phi = o.phi_o - wi.z.atan2(wi.y);
+        let bins = [Self::bin(phi, false), Self::bin(phi, true)];
+        let mut s = [DVec3::ZERO; ORDERS];
+        for c in o.corners.iter().filter(|c| c.weight > 0.0) {
+            let row = &c.table.values[c.row * ORDERS * BINS..][..ORDERS * BINS];
+            let k = bins[usize::from(c.mirror)];
+            for (p, sp) in s.iter_mut().enumerate() {
+                *sp += c.weight * row[p * BINS + k];
+            }
+        }
+        s.map(|v| v * (BINS as f64 / TAU))
     }
 
     /// Per order `p`, the azimuthal term `S_p(φ) / Δφ` at `wi` (without `M_p`), as
     /// [`super::hair::HairBsdf::azimuthal_terms`].
     pub fn azimuthal_terms(&self, wo: DVec3, wi: DVec3) -> [DVec3; ORDERS] {
-        let o = self.outgoing(wo);
-        let phi = o.phi_o - wi.z.atan2(wi.y);
-        std::array::from_fn(|p| {
-            o.corners
-                .iter()
-                .filter(|c| c.weight > 0.0)
-                .map(|c| {
-                    c.weight
-                        * c.table.values[(c.row * ORDERS + p) * BINS + Self::bin(phi, c.mirror)]
-                })
-                .sum::<DVec3>()
-                * (BINS as f64 / TAU)
-        })
+        Self::terms(&self.outgoing(wo), wi)
     }
 
     /// `f(wo, wi) |cos θ_i|`.
@@ -469,26 +468,8 @@ impl<'a> ExactHairBsdf<'a> {
             return None;
         }
         // Each choice rescales what is left of u[0] to [0, 1).
-        let pick = |weights: &mut dyn Iterator<Item = f64>, u: f64, total: f64| {
-            let mut acc = 0.0;
-            let mut last = None;
-            for (i, w) in weights.enumerate() {
-                if w > 0.0 {
-                    last = Some((i, acc, w));
-                    if u * total < acc + w {
-                        return last.map(|(i, a, w)| {
-                            (i, ((u * total - a) / w).clamp(0.0, 1.0 - f64::EPSILON))
-                        });
-                    }
-                }
-                acc += w;
-            }
-            last.map(|(i, _, _)| (i, 1.0 - f64::EPSILON))
-        };
-        let (p, u0) = pick(&mut o.lobe.iter().copied(), u[0], o.total)?;
-        let row_power =
-            |c: &Corner| c.weight * c.table.totals[c.row * ORDERS + p].element_sum() / 3.0;
-        let (ci, u0) = pick(&mut o.corners.iter().map(row_power), u0, o.lobe[p])?;
+        let (p, u0) = pick_rescaled(o.lobe.iter().copied(), u[0] * o.total)?;
+        let (ci, u0) = pick_rescaled(o.corners.iter().map(|c| c.power(p)), u0 * o.lobe[p])?;
         let c = o.corners[ci];
         let cdf = &c.table.cdf[(c.row * ORDERS + p) * (BINS + 1)..][..BINS + 1];
         let target = u0 * cdf[BINS];

@@ -245,19 +245,7 @@ impl HairBsdf {
     /// scatters (e.g. `eta = 1` with opaque fibers).
     pub fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<HairSample> {
         let o = self.outgoing(wo);
-        let q = o.lobe_pdf;
-        // The lobe: the first with u[0] below its CDF, else the last with weight (rounding).
-        let mut p = (0..=P_MAX).rev().find(|&i| q[i] > 0.0)?;
-        let mut cdf = 0.0;
-        for (i, &qi) in q.iter().enumerate() {
-            if qi > 0.0 && u[0] < cdf + qi {
-                p = i;
-                break;
-            }
-            cdf += qi;
-        }
-        let lo: f64 = q[..p].iter().sum();
-        let uc = ((u[0] - lo) / q[p]).clamp(0.0, 1.0 - f64::EPSILON);
+        let (p, uc) = pick_rescaled(o.lobe_pdf.into_iter(), u[0])?;
 
         let (sin_i, cos_i) = self.lobes.sample(p, o.rot[p], [u[1], u[2]]);
 
@@ -386,6 +374,23 @@ pub fn azimuthal_offset(tangent: DVec3, normal: DVec3, wo: DVec3) -> f64 {
         return 0.0;
     }
     (x.dot(n.cross(w)) / (ln * lw)).clamp(-1.0, 1.0)
+}
+
+/// Picks an index from `weights` (not normalised) with `x` in `[0, Σ w)`: the first whose
+/// running sum exceeds `x`, else (rounding) the last with weight; and what is left of `x`
+/// rescaled to `[0, 1)` for the next choice. `None` when no weight is positive.
+pub fn pick_rescaled(weights: impl Iterator<Item = f64>, x: f64) -> Option<(usize, f64)> {
+    let (mut acc, mut last) = (0.0, None);
+    for (i, w) in weights.enumerate() {
+        if w > 0.0 {
+            last = Some((i, acc, w));
+            if x < acc + w {
+                break;
+            }
+        }
+        acc += w;
+    }
+    last.map(|(i, lo, w)| (i, ((x - lo) / w).clamp(0.0, 1.0 - f64::EPSILON)))
 }
 
 /// Chiang et al.'s logistic scale for azimuthal roughness `β_n`:

@@ -176,18 +176,11 @@ pub enum Bsdf<'a> {
         /// Unit tangent.
         t: DVec3,
     },
-    /// Chiang et al. in the local frame `(x, y, z)`: `x` the tangent from tip to root, `z`
-    /// the normal's component in the normal plane, `y = z x x`.
+    /// A hair model in the local frame `(x, y, z)`: `x` the tangent from tip to root, `z` the
+    /// normal's component in the normal plane, `y = z x x`.
     Hair {
-        /// The BSDF with its `h`.
-        bsdf: HairBsdf,
-        /// Local frame.
-        frame: [DVec3; 3],
-    },
-    /// The exact-section hair model in the same local frame as [`Bsdf::Hair`].
-    ExactHair {
-        /// The BSDF with its section.
-        bsdf: ExactHairBsdf<'a>,
+        /// Chiang et al. with its `h`, or the exact-section model with its section.
+        model: HairModel<'a>,
         /// Local frame.
         frame: [DVec3; 3],
     },
@@ -230,6 +223,38 @@ pub fn refract(wo: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
     Some((-wo / eta + (cos_i / eta - cos_t) * n).normalize())
 }
 
+/// The hair models, in their local frame.
+#[derive(Clone, Copy, Debug)]
+pub enum HairModel<'a> {
+    /// Chiang et al. 2016 ([`hair`]).
+    Chiang(HairBsdf),
+    /// Azimuthal scattering traced on the exact section ([`exact`]).
+    Exact(ExactHairBsdf<'a>),
+}
+
+impl HairModel<'_> {
+    fn eval(&self, wo: DVec3, wi: DVec3) -> DVec3 {
+        match self {
+            HairModel::Chiang(b) => b.eval(wo, wi),
+            HairModel::Exact(b) => b.eval(wo, wi),
+        }
+    }
+
+    fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
+        match self {
+            HairModel::Chiang(b) => b.pdf(wo, wi),
+            HairModel::Exact(b) => b.pdf(wo, wi),
+        }
+    }
+
+    fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<hair::HairSample> {
+        match self {
+            HairModel::Chiang(b) => b.sample(wo, u),
+            HairModel::Exact(b) => b.sample(wo, u),
+        }
+    }
+}
+
 /// The local frame of the hair models at a hit: `x = -t` (from tip to root: with a positive
 /// cuticle tilt the R highlight then shifts toward the root, as Marschner et al. 2003
 /// measured), `z` the normal's part across the fiber, `y = z x x`.
@@ -270,31 +295,28 @@ impl<'a> Bsdf<'a> {
                     n: facing,
                 },
             },
-            Material::ExactHair {
-                ref params,
-                tables: Some(ref tables),
-            } => match (at.tangent, at.section) {
-                (Some(t), Some(section)) => {
-                    let frame = hair_frame(t, at.normal);
-                    let major = Self::to_local(&frame, section.major);
-                    Bsdf::ExactHair {
-                        bsdf: ExactHairBsdf::new(params, tables, section.aspect, major),
-                        frame,
-                    }
-                }
-                _ => Bsdf::Diffuse {
-                    albedo: DVec3::splat(0.5),
-                    n: facing,
-                },
-            },
             Material::Hair(params) | Material::ExactHair { params, .. } => match at.tangent {
                 Some(t) => {
                     let frame = hair_frame(t, at.normal);
-                    let h = azimuthal_offset(frame[0], at.normal, wo);
-                    Bsdf::Hair {
-                        bsdf: HairBsdf::new(&params, h),
-                        frame,
-                    }
+                    let model = match (material, at.section) {
+                        (
+                            Material::ExactHair {
+                                tables: Some(tables),
+                                ..
+                            },
+                            Some(s),
+                        ) => HairModel::Exact(ExactHairBsdf::new(
+                            &params,
+                            tables,
+                            s.aspect,
+                            Self::to_local(&frame, s.major),
+                        )),
+                        _ => HairModel::Chiang(HairBsdf::new(
+                            &params,
+                            azimuthal_offset(frame[0], at.normal, wo),
+                        )),
+                    };
+                    Bsdf::Hair { model, frame }
                 }
                 // Hair on a non-fiber surface has no tangent: shade it as its colour.
                 None => Bsdf::Diffuse {
@@ -332,11 +354,8 @@ impl<'a> Bsdf<'a> {
                 );
                 diffuse * (si / (PI * PI)) + specular * (si * so - ti * to).max(0.0).powf(exponent)
             }
-            Bsdf::Hair { ref bsdf, frame } => {
-                bsdf.eval(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
-            }
-            Bsdf::ExactHair { ref bsdf, frame } => {
-                bsdf.eval(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
+            Bsdf::Hair { ref model, frame } => {
+                model.eval(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
             }
             Bsdf::Dielectric { .. } => DVec3::ZERO,
         }
@@ -347,11 +366,8 @@ impl<'a> Bsdf<'a> {
         match *self {
             Bsdf::Diffuse { n, .. } => n.dot(wi).max(0.0) / PI,
             Bsdf::KajiyaKay { .. } => 1.0 / (4.0 * PI),
-            Bsdf::Hair { ref bsdf, frame } => {
-                bsdf.pdf(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
-            }
-            Bsdf::ExactHair { ref bsdf, frame } => {
-                bsdf.pdf(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
+            Bsdf::Hair { ref model, frame } => {
+                model.pdf(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
             }
             Bsdf::Dielectric { .. } => 0.0,
         }
@@ -380,17 +396,8 @@ impl<'a> Bsdf<'a> {
                     pdf,
                 })
             }
-            Bsdf::ExactHair { ref bsdf, frame } => {
-                let s = bsdf.sample(Self::to_local(&frame, wo), u)?;
-                let wi = frame[0] * s.wi.x + frame[1] * s.wi.y + frame[2] * s.wi.z;
-                Some(BsdfSample {
-                    wi,
-                    weight: s.weight,
-                    pdf: s.pdf,
-                })
-            }
-            Bsdf::Hair { ref bsdf, frame } => {
-                let s = bsdf.sample(Self::to_local(&frame, wo), u)?;
+            Bsdf::Hair { ref model, frame } => {
+                let s = model.sample(Self::to_local(&frame, wo), u)?;
                 let wi = frame[0] * s.wi.x + frame[1] * s.wi.y + frame[2] * s.wi.z;
                 Some(BsdfSample {
                     wi,
