@@ -15,13 +15,26 @@ use crate::roots::bracketed_root;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bernstein<const K: usize>(pub [f64; K]);
 
-/// `C(n, k)` for `n < 16`.
-fn binomial(n: usize, k: usize) -> f64 {
-    let mut c = 1.0;
-    for i in 0..k {
-        c = c * (n - i) as f64 / (i + 1) as f64;
+/// `C(n, k)` for `n < 16` (`0` for `k > n`), exact in `f64`, from Pascal's rule at compile time.
+const BINOMIAL: [[f64; 16]; 16] = {
+    let mut c = [[0.0f64; 16]; 16];
+    let mut n = 0;
+    while n < 16 {
+        c[n][0] = 1.0;
+        let mut k = 1;
+        while k <= n {
+            c[n][k] = c[n - 1][k - 1] + c[n - 1][k];
+            k += 1;
+        }
+        n += 1;
     }
     c
+};
+
+/// `C(n, k)` for `n < 16`.
+#[inline]
+fn binomial(n: usize, k: usize) -> f64 {
+    BINOMIAL[n][k]
 }
 
 impl<const K: usize> Bernstein<K> {

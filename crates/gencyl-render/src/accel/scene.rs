@@ -1,6 +1,6 @@
 //! The scene ready for ray queries: cylinders and a BVH over pieces of their axes.
 
-use gencyl::{GeneralizedCylinder, Hit, Ray, Section};
+use gencyl::{GeneralizedCylinder, Hit, Method, Ray, Section};
 use rayon::prelude::*;
 
 use crate::accel::bvh::Bvh;
@@ -144,19 +144,14 @@ impl Scene {
         accept: impl Fn(&SceneHit) -> bool,
     ) -> Option<SceneHit> {
         let mut best: Option<SceneHit> = None;
-        let hits = &mut scratch.hits;
         self.candidates(ray, tmin, tmax, &mut scratch.tested, |i, c, _| {
             // Exclusive upper bound for the cylinder: up to and including the best t, for ties.
             let limit = best.map_or(tmax, |b| b.hit.t.next_up());
-            hits.clear();
-            c.intersect_all(ray, tmin, limit, hits);
-            if let Some(h) = hits
-                .iter()
-                .map(|&hit| SceneHit { hit, object: i })
-                .find(|h| accept(h))
-                && best.is_none_or(|b| h.hit.t < b.hit.t || (h.hit.t == b.hit.t && i < b.object))
+            if let Some(hit) = c.intersect_first_with(ray, tmin, limit, Method::Auto, |&hit| {
+                accept(&SceneHit { hit, object: i })
+            }) && best.is_none_or(|b| hit.t < b.hit.t || (hit.t == b.hit.t && i < b.object))
             {
-                best = Some(h);
+                best = Some(SceneHit { hit, object: i });
             }
             best.map_or(tmax, |b| b.hit.t)
         });
@@ -198,11 +193,12 @@ impl Scene {
         accept: impl Fn(&SceneHit) -> bool,
     ) -> bool {
         let mut found = false;
-        let hits = &mut scratch.hits;
         self.candidates(ray, tmin, tmax, &mut scratch.tested, |i, c, tmax| {
-            hits.clear();
-            c.intersect_all(ray, tmin, tmax, hits);
-            found = hits.iter().any(|&hit| accept(&SceneHit { hit, object: i }));
+            found = c
+                .intersect_first_with(ray, tmin, tmax, Method::Auto, |&hit| {
+                    accept(&SceneHit { hit, object: i })
+                })
+                .is_some();
             if found { f64::NEG_INFINITY } else { tmax }
         });
         found

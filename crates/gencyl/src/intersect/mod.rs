@@ -89,6 +89,25 @@ pub(crate) struct SideRoot {
 
 pub(crate) type SideRoots = ArrayVec<SideRoot, 64>;
 
+/// Most crossings of one ray and one cylinder: the side roots, two caps, the fold envelope's
+/// roots (at most 8) and one per switch of the Frenet frame (at most 8).
+const MAX_CROSSINGS: usize = 64 + 2 + 8 + 8;
+
+/// A crossing at `t`, before or after its hit is finished.
+#[derive(Clone, Copy, Debug)]
+struct Crossing {
+    t: f64,
+    hit: Pending,
+}
+
+/// A side root still without its section angle (for the Round method) and normal, or a
+/// finished hit.
+#[derive(Clone, Copy, Debug)]
+enum Pending {
+    Side(SideRoot),
+    Done(Hit),
+}
+
 /// `g(u) = q^2 (|phi(u)|^2 - R^2) = |q phi|^2 - R^2 q^2`: negative exactly where the ray's
 /// point in the normal plane at `u` maps inside the disc of radius `R` in section coordinates.
 /// With `R = 1` its roots are the hits on the unit-circle section. Unlike `|phi|^2 - R^2` it has
@@ -159,15 +178,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// The nearest hit with `tmin < t < tmax`, if any.
     pub fn intersect(&self, ray: &Ray, tmin: f64, tmax: f64) -> Option<Hit> {
-        // A per-thread buffer: no allocation per ray once it has grown.
-        thread_local! {
-            static HITS: std::cell::RefCell<Vec<Hit>> = const { std::cell::RefCell::new(Vec::new()) };
-        }
-        HITS.with_borrow_mut(|hits| {
-            hits.clear();
-            self.intersect_all(ray, tmin, tmax, hits);
-            hits.first().copied()
-        })
+        self.intersect_first_with(ray, tmin, tmax, Method::Auto, |_| true)
     }
 
     /// Appends every hit with `tmin < t < tmax` to `out`, sorted by `t`.
@@ -185,8 +196,47 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         method: Method,
         out: &mut Vec<Hit>,
     ) {
+        self.each_hit(ray, tmin, tmax, method, |h| {
+            out.push(*h);
+            false
+        });
+    }
+
+    /// The first hit of [`Self::intersect_all_with`]'s list that `accept` takes. Only the hits
+    /// up to it are finished (their section angle and normal): a round fiber's nearest hit
+    /// costs one frame, not one per crossing.
+    pub fn intersect_first_with(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: f64,
+        method: Method,
+        mut accept: impl FnMut(&Hit) -> bool,
+    ) -> Option<Hit> {
+        let mut first = None;
+        self.each_hit(ray, tmin, tmax, method, |h| {
+            let take = accept(h);
+            if take {
+                first = Some(*h);
+            }
+            take
+        });
+        first
+    }
+
+    /// Hands the hits with `tmin < t < tmax` to `each` in order of `t`, until it returns `true`.
+    /// A hit is finished only when it is reached: the crossings are found and sorted first, then
+    /// each in turn gets its section angle and normal, is merged with a duplicate before it, and
+    /// (where the surface may fold) kept only on the solid's boundary.
+    fn each_hit(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: f64,
+        method: Method,
+        mut each: impl FnMut(&Hit) -> bool,
+    ) {
         let d = ray.dir;
-        let start = out.len();
         if !(d.length_squared() > 0.0) || !d.is_finite() || !ray.origin.is_finite() {
             return;
         }
@@ -204,57 +254,33 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let mut roots = SideRoots::new();
         let method = self.resolve(method);
         self.side_roots(o, d, method, &mut roots);
-        // A round fiber's scale at its ends, when the Round method found the roots.
-        let round = self
-            .sweep
-            .uniform_scale()
-            .filter(|_| method == Method::Round);
+        let mut found: ArrayVec<Crossing, MAX_CROSSINGS> = ArrayVec::new();
         for r in &roots {
             let t = t0 + r.w;
             if t > tmin && t < tmax && t.is_finite() {
-                let u = r.u.clamp(0.0, 1.0);
-                // A round fiber's root leaves its section angle to here, so that the angle and
-                // the normal share one frame.
-                let frame = round.map(|_| self.frame(r.u));
-                let v = match &frame {
-                    Some(f) => round::section_angle(self, (o, d), (r.u, r.w), f),
-                    None => r.v,
-                };
-                // v in [0, 2 pi): rem_euclid of a tiny negative angle can round up to 2 pi.
-                let v = if !(0.0..std::f64::consts::TAU).contains(&v) {
-                    v.rem_euclid(std::f64::consts::TAU) % std::f64::consts::TAU
-                } else {
-                    v
-                };
-                let normal = match (round, frame) {
-                    (Some([k0, k1]), Some(f)) if u == r.u => {
-                        self.round_normal_in(u, v, k1 - k0, &f)
-                    }
-                    _ => self.normal(u, v),
-                };
-                out.push(Hit {
+                found.push(Crossing {
                     t,
-                    u,
-                    v,
-                    point: ray.at(t),
-                    normal,
-                    part: Part::Side,
+                    hit: Pending::Side(*r),
                 });
             }
         }
+        let done = |hit: Hit| Crossing {
+            t: hit.t,
+            hit: Pending::Done(hit),
+        };
         for (part, closed) in [(Part::StartCap, self.caps[0]), (Part::EndCap, self.caps[1])] {
             if let Some((w, v)) = closed.then(|| self.cap_root(o, d, part)).flatten() {
                 let t = t0 + w;
                 if t > tmin && t < tmax {
                     let u = if part == Part::StartCap { 0.0 } else { 1.0 };
-                    out.push(Hit {
+                    found.push(done(Hit {
                         t,
                         u,
                         v,
                         point: ray.at(t),
                         normal: self.cap_normal(part),
                         part,
-                    });
+                    }));
                 }
             }
         }
@@ -262,14 +288,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             for (w, u, v, normal) in self.envelope_roots(o, d) {
                 let t = t0 + w;
                 if t > tmin && t < tmax {
-                    out.push(Hit {
+                    found.push(done(Hit {
                         t,
                         u,
                         v,
                         point: ray.at(t),
                         normal,
                         part: Part::Seam,
-                    });
+                    }));
                 }
             }
         }
@@ -279,67 +305,113 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 if let Some((w, v, normal)) = self.seam_root(o, d, s) {
                     let t = t0 + w;
                     if t > tmin && t < tmax {
-                        out.push(Hit {
+                        found.push(done(Hit {
                             t,
                             u: s,
                             v,
                             point: ray.at(t),
                             normal,
                             part: Part::Seam,
-                        });
+                        }));
                     }
                 }
             }
         }
-        out[start..].sort_by(|a, b| a.t.total_cmp(&b.t));
+        // Stable: crossings at equal t keep the order above.
+        found.sort_by(|a, b| a.t.total_cmp(&b.t));
         // One crossing found twice (from neighbouring pieces or boxes where the hit is
         // ill-conditioned along the ray): hits within DUPLICATE of the fiber's size along the
         // ray, on the same part and the same side of the surface, are one. (An entry and an
         // exit that close stay two: their normals face opposite ways along the ray.)
         let close = DUPLICATE * (self.bounds().max - self.bounds().min).length() / d.length();
-        let mut kept = start;
-        for i in start..out.len() {
-            let h = out[i];
-            let same = |k: &Hit| {
-                (h.t - k.t).abs() <= close
-                    && h.part == k.part
-                    && (h.normal.dot(d) > 0.0) == (k.normal.dot(d) > 0.0)
+        let same = |h: &Hit, k: &Hit| {
+            (h.t - k.t).abs() <= close
+                && h.part == k.part
+                && (h.normal.dot(d) > 0.0) == (k.normal.dot(d) > 0.0)
+        };
+        // A round fiber's scale at its ends, when the Round method found the roots.
+        let round = self
+            .sweep
+            .uniform_scale()
+            .filter(|_| method == Method::Round);
+        let mut last: Option<Hit> = None;
+        for c in &found {
+            let h = match c.hit {
+                Pending::Done(h) => h,
+                Pending::Side(r) => self.finish_side(ray, (o, d), c.t, r, round),
             };
-            if kept > start && same(&out[kept - 1]) {
+            if last.is_some_and(|k| same(&h, &k)) {
                 continue;
             }
-            out[kept] = h;
-            kept += 1;
+            last = Some(h);
+            let h = if self.may_fold() {
+                match self.on_boundary(h) {
+                    Some(h) => h,
+                    None => continue,
+                }
+            } else {
+                h
+            };
+            if each(&h) {
+                return;
+            }
         }
-        out.truncate(kept);
-        if self.may_fold() {
-            self.keep_boundary_crossings(start, out);
+    }
+
+    /// The side hit of the root `r` at `t`: its section angle and normal. `round` is a round
+    /// fiber's scale at its ends when the Round method found the root, which leaves the angle
+    /// to here so that the angle and the normal share one frame.
+    fn finish_side(
+        &self,
+        ray: &Ray,
+        (o, d): (DVec3, DVec3),
+        t: f64,
+        r: SideRoot,
+        round: Option<[f64; 2]>,
+    ) -> Hit {
+        let u = r.u.clamp(0.0, 1.0);
+        let frame = round.map(|_| self.frame(r.u));
+        let v = match &frame {
+            Some(f) => round::section_angle(self, (o, d), (r.u, r.w), f),
+            None => r.v,
+        };
+        // v in [0, 2 pi): rem_euclid of a tiny negative angle can round up to 2 pi.
+        let v = if !(0.0..std::f64::consts::TAU).contains(&v) {
+            v.rem_euclid(std::f64::consts::TAU) % std::f64::consts::TAU
+        } else {
+            v
+        };
+        let normal = match (round, frame) {
+            (Some([k0, k1]), Some(f)) if u == r.u => self.round_normal_in(u, v, k1 - k0, &f),
+            _ => self.normal(u, v),
+        };
+        Hit {
+            t,
+            u,
+            v,
+            point: ray.at(t),
+            normal,
+            part: Part::Side,
         }
     }
 
     /// Where the surface folds through the solid, keeps only the hits on its boundary
     /// (interface.md 3, errata 5), with their normals pointing out: a hit whose point moved a
     /// little along its normal leaves the solid is kept; one with solid on both sides lies on a
-    /// sheet of the surface that passes through the solid and is dropped; one with solid only
-    /// ahead lies on a sheet turned inside out beyond a fold edge, and its normal is flipped.
-    /// ([`Self::contains`] decides; the probe is a millionth of the thinnest section's reach,
-    /// far above the hits' error.)
-    fn keep_boundary_crossings(&self, start: usize, out: &mut Vec<Hit>) {
+    /// sheet of the surface that passes through the solid and is dropped (`None`); one with
+    /// solid only ahead lies on a sheet turned inside out beyond a fold edge, and its normal is
+    /// flipped. ([`Self::contains`] decides; the probe is a millionth of the thinnest section's
+    /// reach, far above the hits' error.)
+    fn on_boundary(&self, mut h: Hit) -> Option<Hit> {
         let [l0, l1] = self.sweep.scale_bound();
         let step = 1e-6 * l0.min(l1) * self.section.bounding_radius();
-        let mut kept = start;
-        for i in start..out.len() {
-            let mut h = out[i];
-            if self.contains(h.point + step * h.normal) {
-                if self.contains(h.point - step * h.normal) {
-                    continue;
-                }
-                h.normal = -h.normal;
+        if self.contains(h.point + step * h.normal) {
+            if self.contains(h.point - step * h.normal) {
+                return None;
             }
-            out[kept] = h;
-            kept += 1;
+            h.normal = -h.normal;
         }
-        out.truncate(kept);
+        Some(h)
     }
 
     fn resolve(&self, method: Method) -> Method {

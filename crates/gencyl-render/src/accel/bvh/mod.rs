@@ -19,8 +19,6 @@ use gencyl::{Aabb, Ray};
 use glam::DVec3;
 use wide::{CmpGe, CmpLe, f32x4, f64x4};
 
-use build::{down, up};
-
 /// Number of SAH bins per axis.
 pub const BINS: usize = 16;
 /// Most primitives in a leaf.
@@ -173,17 +171,19 @@ impl Bvh {
 
     /// The traversal proper, with the box test `slab`.
     #[inline]
-    fn walk(
+    fn walk<B: BoxTest>(
         &self,
         root: Child,
-        slab: &impl BoxTest,
+        slab: &B,
         tmin: f64,
         mut tmax: f64,
         mut visit: impl FnMut(u32, f64) -> f64,
     ) {
         // Slots still to visit, with the ray's entry into their box (never later than the true
-        // entry).
-        let mut stack: ArrayVec<(Child, f64), STACK> = ArrayVec::new();
+        // entry), in the box test's precision.
+        let mut stack: ArrayVec<(Child, B::T), STACK> = ArrayVec::new();
+        // `tmax` in the box test's precision (never below it).
+        let mut limit = slab.limit(tmax);
         let mut cur = root;
         loop {
             if cur.count > 0 {
@@ -194,24 +194,34 @@ impl Bvh {
                         return;
                     }
                 }
+                limit = slab.limit(tmax);
             } else {
                 let n = &self.nodes[cur.offset as usize];
-                let (entry, hit) = slab.entries(n, tmax);
-                // The entered children, nearest first; the rest wait on the stack.
-                let mut near = [(Child::EMPTY, f64::INFINITY); 4];
-                let mut k = 0;
-                for (i, (&child, &t)) in n.child.iter().zip(&entry).enumerate() {
-                    if hit & (1 << i) != 0 {
+                let (entry, hit) = slab.entries(n, limit);
+                if hit != 0 {
+                    let first = hit.trailing_zeros() as usize;
+                    let mut rest = hit & (hit - 1);
+                    if rest == 0 {
+                        // One child entered (the common case low in the tree): no sorting.
+                        cur = n.child[first];
+                        continue;
+                    }
+                    // The entered children, nearest first (ties in slot order); the rest wait
+                    // on the stack.
+                    let mut near = [(n.child[first], entry[first]); 4];
+                    let mut k = 1;
+                    while rest != 0 {
+                        let i = rest.trailing_zeros() as usize;
+                        rest &= rest - 1;
+                        let t = entry[i];
                         let mut j = k;
                         while j > 0 && near[j - 1].1 > t {
                             near[j] = near[j - 1];
                             j -= 1;
                         }
-                        near[j] = (child, t);
+                        near[j] = (n.child[i], t);
                         k += 1;
                     }
-                }
-                if k > 0 {
                     stack.extend(near[1..k].iter().rev().copied());
                     cur = near[0].0;
                     continue;
@@ -222,7 +232,7 @@ impl Bvh {
                 let Some((c, t)) = stack.pop() else {
                     return;
                 };
-                if t <= tmax {
+                if t <= limit {
                     cur = c;
                     break;
                 }
@@ -235,7 +245,12 @@ impl Bvh {
 /// `[tmin, tmax]` (never later than it truly does), and a bit mask of the boxes it meets
 /// there (never missing one it truly meets).
 trait BoxTest {
-    fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32);
+    /// The precision of entries and of the range's end.
+    type T: Copy + PartialOrd;
+    /// `tmax` in that precision, never below it.
+    fn limit(&self, tmax: f64) -> Self::T;
+    /// Entries into the four boxes and the mask of those met before `limit`.
+    fn entries(&self, n: &Node4, limit: Self::T) -> ([Self::T; 4], i32);
 }
 
 /// A ray prepared for slab tests against a [`Node4`]'s four `f32` boxes, in `f64`: the
@@ -247,8 +262,9 @@ trait BoxTest {
 /// flat case (`0 * inf` would be NaN), and `(+-inf - o) * inv` (an empty slot's bound) is
 /// infinite.
 struct Slabs {
-    origin: DVec3,
-    inv: DVec3,
+    /// `o - c` and `1 / d`, as arrays (indexing a `DVec3` by axis costs a branch per access).
+    origin: [f64; 3],
+    inv: [f64; 3],
     neg: [bool; 3],
     /// Direction components that are zero: the ray stays in that slab or misses it entirely.
     flat: [bool; 3],
@@ -265,8 +281,8 @@ impl Slabs {
     fn new(ray: &Ray, center: DVec3, tmin: f64) -> Self {
         let d = ray.dir;
         Slabs {
-            origin: ray.origin - center,
-            inv: d.recip(),
+            origin: (ray.origin - center).to_array(),
+            inv: d.recip().to_array(),
             neg: [d.x < 0.0, d.y < 0.0, d.z < 0.0],
             flat: [d.x == 0.0, d.y == 0.0, d.z == 0.0],
             tmin,
@@ -276,8 +292,9 @@ impl Slabs {
     /// Whether the ray meets the box `b` (in world coordinates) within `[tmin, tmax]`.
     fn meets(&self, b: &Aabb, ray: &Ray, tmax: f64) -> bool {
         let (mut t0, mut t1) = (self.tmin, tmax);
+        let (origin, min, max) = (ray.origin.to_array(), b.min.to_array(), b.max.to_array());
         for k in 0..3 {
-            let (o, lo, hi) = (ray.origin[k], b.min[k], b.max[k]);
+            let (o, lo, hi) = (origin[k], min[k], max[k]);
             if self.flat[k] {
                 if o < lo || o > hi {
                     return false;
@@ -285,14 +302,23 @@ impl Slabs {
                 continue;
             }
             let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
-            t0 = t0.max((near - o) * self.inv[k]);
-            t1 = t1.min((far - o) * self.inv[k]);
+            // No NaN arises (finite box, origin and inverse): plain comparisons suffice.
+            let (a, b) = ((near - o) * self.inv[k], (far - o) * self.inv[k]);
+            t0 = if a > t0 { a } else { t0 };
+            t1 = if b < t1 { b } else { t1 };
         }
         t0 <= t1
     }
 }
 
 impl BoxTest for Slabs {
+    type T = f64;
+
+    #[inline]
+    fn limit(&self, tmax: f64) -> f64 {
+        tmax
+    }
+
     #[inline]
     fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32) {
         let mut t0 = f64x4::splat(self.tmin);
@@ -361,26 +387,20 @@ impl Slabs32 {
         let mut near_inv = [0.0f32; 3];
         let mut far_inv = [0.0f32; 3];
         for k in 0..3 {
-            // `o - c` was rounded to the nearest f64: widen by its ulp before rounding outward.
+            // `o - c` was rounded to the nearest f64: `at_or_above` and `at_or_below` widen by
+            // far more than its ulp.
             let (o, inv) = (s.origin[k], s.inv[k]);
-            let (o_up, o_down) = (
-                up(o + o.abs() * f64::EPSILON),
-                down(o - o.abs() * f64::EPSILON),
-            );
-            if s.flat[k] {
-                // The flat case checks lo <= o' (rounded up) and hi >= o'' (rounded down).
-                (near_o[k], far_o[k]) = (o_up, o_down);
-                continue;
-            }
-            let toward_zero = |x: f64| if x > 0.0 { down(x) } else { up(x) };
-            let away = |x: f64| if x > 0.0 { up(x) } else { down(x) };
-            if s.neg[k] {
-                (near_o[k], far_o[k]) = (o_down, o_up);
+            let (o_up, o_down) = (at_or_above(o), at_or_below(o));
+            (near_o[k], far_o[k]) = if s.neg[k] && !s.flat[k] {
+                (o_down, o_up)
             } else {
-                (near_o[k], far_o[k]) = (o_up, o_down);
-            }
-            near_inv[k] = toward_zero(inv * (1.0 - EPS));
-            far_inv[k] = away(inv * (1.0 + EPS));
+                // The flat case checks lo <= o' (rounded up) and hi >= o'' (rounded down).
+                (o_up, o_down)
+            };
+            // Within 2^-24 of the scaled values, so |near| <= |1/d| (1 - EPS) and
+            // |far| >= |1/d| (1 + EPS); both normal f32 (|inv| is within F32_SAFE).
+            near_inv[k] = (inv * (1.0 - 2.0 * EPS)) as f32;
+            far_inv[k] = (inv * (1.0 + 2.0 * EPS)) as f32;
         }
         Some(Slabs32 {
             near_o: near_o.map(f32x4::splat),
@@ -389,16 +409,48 @@ impl Slabs32 {
             far_inv: far_inv.map(f32x4::splat),
             neg: s.neg,
             flat: s.flat,
-            tmin: f32x4::splat(down(tmin)),
+            tmin: f32x4::splat(if tmin <= F32_SAFE {
+                at_or_below(tmin)
+            } else {
+                f32::MAX
+            }),
         })
     }
 }
 
+/// An `f32` at or above `x` (`|x| <= F32_SAFE`), without branches: `x` grown by `2^-22` of
+/// itself, rounded to nearest (within `2^-24` relative where the result is a normal `f32`),
+/// then raised by `TINY` (which covers the subnormal range and `0`).
+#[inline]
+fn at_or_above(x: f64) -> f32 {
+    ((x + x.abs() * MARGIN) as f32) + TINY
+}
+
+/// An `f32` at or below `x` (`|x| <= F32_SAFE`): [`at_or_above`] mirrored.
+#[inline]
+fn at_or_below(x: f64) -> f32 {
+    ((x - x.abs() * MARGIN) as f32) - TINY
+}
+
+/// The relative growth of [`at_or_above`] and [`at_or_below`] before rounding to `f32`.
+const MARGIN: f64 = 1.0 / (1u64 << 22) as f64;
+
 impl BoxTest for Slabs32 {
+    type T = f32;
+
     #[inline]
-    fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32) {
+    fn limit(&self, tmax: f64) -> f32 {
+        if tmax <= F32_SAFE {
+            at_or_above(tmax)
+        } else {
+            f32::INFINITY
+        }
+    }
+
+    #[inline]
+    fn entries(&self, n: &Node4, limit: f32) -> ([f32; 4], i32) {
         let mut t0 = self.tmin;
-        let mut t1 = f32x4::splat(up(tmax));
+        let mut t1 = f32x4::splat(limit);
         let mut inside = f32x4::splat(0.0).cmp_le(f32x4::splat(0.0));
         for k in 0..3 {
             let (lo, hi) = (f32x4::from(n.min[k]), f32x4::from(n.max[k]));
@@ -412,13 +464,13 @@ impl BoxTest for Slabs32 {
         }
         let t0 = t0 - f32x4::splat(TINY);
         let hit = (t0.cmp_le(t1 + f32x4::splat(TINY)) & inside).move_mask();
-        (t0.to_array().map(f64::from), hit)
+        (t0.to_array(), hit)
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::build::CLUSTER_MIN;
+    use super::build::{CLUSTER_MIN, down, up};
     use super::*;
     use crate::accel::{Scene, SceneHit, Scratch, sort_hits};
     use crate::sampling::SampleRng as Rng;
@@ -439,6 +491,44 @@ mod tests {
         }
         assert_eq!(up(1e300), f32::INFINITY, "beyond f32");
         assert_eq!(down(-1e300), f32::NEG_INFINITY, "beyond f32");
+    }
+
+    /// The ray setup's branch-free roundings hold the value on every scale the `f32` test
+    /// takes: zero, `f64` values below `f32`'s subnormals, around `f32::MIN_POSITIVE`, values
+    /// that are exact `f32`s and their `f64` neighbours, up to `F32_SAFE`.
+    #[test]
+    fn branch_free_rounding_holds_the_value() {
+        let mut rng = Rng::from_seed(71);
+        let mut xs = vec![0.0, -0.0, F32_SAFE, -F32_SAFE, 1e-320, -1e-320];
+        for e in -60..=30 {
+            let m = rng.range(1.0, 10.0) * 10f64.powi(e);
+            let f = m as f32 as f64;
+            for x in [
+                m,
+                f,
+                f.next_up(),
+                f.next_down(),
+                f32::MIN_POSITIVE as f64 * m,
+            ] {
+                if x.abs() <= F32_SAFE {
+                    xs.extend([x, -x]);
+                }
+            }
+        }
+        for _ in 0..20_000 {
+            let x = (rng.uniform() - 0.5) * 10f64.powf(rng.range(-330.0, 30.0));
+            xs.push(x);
+        }
+        for x in xs {
+            let (hi, lo) = (at_or_above(x), at_or_below(x));
+            assert!(hi as f64 >= x && lo as f64 <= x, "{x}: {lo} {hi}");
+            // Tight: within a few f32 ulps (or TINY) of the value.
+            assert!(
+                (hi as f64 - x) <= 1e-6 * x.abs() + 2.0 * TINY as f64
+                    && (x - lo as f64) <= 1e-6 * x.abs() + 2.0 * TINY as f64,
+                "{x}: {lo} {hi}"
+            );
+        }
     }
 
     /// Every ray through a point of a box (inside it, on a face, at a corner) visits that
