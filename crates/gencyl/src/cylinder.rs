@@ -1,5 +1,6 @@
 //! The generalized cylinder: surface, normals, bounds, caps.
 
+use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use crate::bernstein::Bernstein;
@@ -251,7 +252,8 @@ pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
     bounds: Aabb,
     /// Where the frame may jump, ascending ([`frenet_switches`] over the search range of the
     /// intersector): no enclosure may span one, and the solid may have a seam there.
-    switches: Box<[f64]>,
+    /// Boxed, and only where there are any (most axes have none): a thin pointer in the struct.
+    switches: Option<Box<ArrayVec<f64, 8>>>,
     /// Whether the swept surface may pass through the solid (see [`Self::may_fold`]).
     may_fold: bool,
 }
@@ -405,10 +407,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         });
         let margin = crate::intersect::U_MARGIN;
         let switches = match framing {
-            Framing::Frenet => frenet_switches(&local, -margin, 1.0 + margin).to_vec(),
-            _ => Vec::new(),
+            Framing::Frenet => Some(frenet_switches(&local, -margin, 1.0 + margin)),
+            _ => None,
         }
-        .into_boxed_slice();
+        .filter(|s| !s.is_empty())
+        .map(Box::new);
         // On the axis scaled to unit extent (r kappa does not change), so no square overflows.
         let may_fold = Self::fold_possible(&unit, r / extent, min_speed);
         Ok(GeneralizedCylinder {
@@ -519,10 +522,18 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         self.bounds
     }
 
+    /// Heap bytes of the frame's switch list (none for most axes).
+    pub fn switch_bytes(&self) -> usize {
+        self.switches
+            .as_ref()
+            .map_or(0, |s| size_of_val(s.as_ref()))
+    }
+
     /// The parameters in `(a, b)` where the frame may jump, ascending.
     pub(crate) fn switches_in(&self, a: f64, b: f64) -> impl Iterator<Item = f64> + '_ {
         self.switches
             .iter()
+            .flat_map(|s| s.iter())
             .copied()
             .filter(move |&s| s > a && s < b)
     }
@@ -913,6 +924,13 @@ pub(crate) fn v2(p: V2<f64>) -> DVec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The struct's size is most of a hair model's memory: a layout change shows here.
+    #[test]
+    fn cylinder_is_320_bytes() {
+        assert_eq!(size_of::<Section>(), 8, "a profile is one shared pointer");
+        assert_eq!(size_of::<GeneralizedCylinder>(), 320, "cylinder layout");
+    }
     use crate::section::BezierLoop;
 
     fn curved() -> CubicBezier {

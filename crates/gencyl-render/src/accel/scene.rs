@@ -80,15 +80,20 @@ impl Scene {
         &self.bvh
     }
 
-    /// Bytes held by the cylinders (their structs and heap data) and the BVH.
+    /// Bytes held by the cylinders (their structs and heap data, a profile shared by many
+    /// cylinders once) and the BVH.
     pub fn memory_bytes(&self) -> usize {
+        let mut profiles = std::collections::HashSet::new();
         let cyl = self.cylinders.capacity() * std::mem::size_of::<GeneralizedCylinder>()
             + self
                 .cylinders
                 .iter()
-                .map(|c| match c.section() {
-                    Section::Loop(l) => std::mem::size_of_val(l.pieces()),
-                    Section::Circle(_) => 0,
+                .map(|c| {
+                    let section = match c.section() {
+                        Section::Loop(l) if profiles.insert(l.storage_id()) => l.storage_bytes(),
+                        _ => 0,
+                    };
+                    section + c.switch_bytes()
                 })
                 .sum::<usize>();
         cyl + self.bvh.memory_bytes()

@@ -1,4 +1,5 @@
 use std::f64::consts::TAU;
+use std::sync::Arc;
 
 use glam::DVec2;
 use polycool::Cubic;
@@ -13,8 +14,15 @@ use crate::real::{Real, V2};
 /// `[2 pi i / k, 2 pi (i+1) / k)`.
 ///
 /// In a scene, `profile = [[x, y], ...]` lists `3k` points `P_0, C_0, D_0, P_1, C_1, D_1, ...`.
+///
+/// Shared, not copied, between the fibers that use it (a clone is a reference count): a
+/// cylinder holds one pointer for its section.
 #[derive(Clone, Debug, PartialEq)]
-pub struct BezierLoop {
+pub struct BezierLoop(Arc<LoopData>);
+
+/// A [`BezierLoop`]'s pieces, orientation (the sign of its area) and bounding radius.
+#[derive(Debug, PartialEq)]
+struct LoopData {
     pieces: Vec<[DVec2; 4]>,
     orientation: f64,
     radius: f64,
@@ -69,11 +77,21 @@ impl BezierLoop {
         if !(area.abs() > 1e-12 * radius * radius) {
             return Err(ProfileError::NoArea);
         }
-        Ok(BezierLoop {
+        Ok(BezierLoop(Arc::new(LoopData {
             pieces,
             orientation: area.signum(),
             radius,
-        })
+        })))
+    }
+
+    /// An identity of the shared data, equal for clones of one loop (to count its memory once).
+    pub fn storage_id(&self) -> usize {
+        Arc::as_ptr(&self.0) as usize
+    }
+
+    /// Bytes of the shared data (counted once for all clones).
+    pub fn storage_bytes(&self) -> usize {
+        size_of::<LoopData>() + size_of_val(self.0.pieces.as_slice())
     }
 
     /// The four-piece cubic approximation of the unit circle (control distance
@@ -95,18 +113,18 @@ impl BezierLoop {
 
     /// The cubic pieces.
     pub fn pieces(&self) -> &[[DVec2; 4]] {
-        &self.pieces
+        &self.0.pieces
     }
 
     fn locate(&self, v: f64) -> (usize, f64) {
-        let k = self.pieces.len();
+        let k = self.0.pieces.len();
         let x = (v / TAU).rem_euclid(1.0) * k as f64;
         let i = (x.floor() as usize).min(k - 1);
         (i, x - i as f64)
     }
 
     fn v_of(&self, i: usize, s: f64) -> f64 {
-        let v = (i as f64 + s) / self.pieces.len() as f64 * TAU;
+        let v = (i as f64 + s) / self.0.pieces.len() as f64 * TAU;
         if v >= TAU { 0.0 } else { v }
     }
 
@@ -180,16 +198,16 @@ const S_TOL: f64 = 1e-13;
 impl CrossSection for BezierLoop {
     fn point(&self, v: f64) -> DVec2 {
         let (i, s) = self.locate(v);
-        eval(&self.pieces[i], s)
+        eval(&self.0.pieces[i], s)
     }
 
     /// The cubic of the piece holding `v.value()` at `s = (v - v_i) k / (2 pi)`, in Bernstein form.
     fn point_r<T: Real>(&self, v: T) -> V2<T> {
         let (i, _) = self.locate(v.value());
-        let k = self.pieces.len() as f64;
+        let k = self.0.pieces.len() as f64;
         let s = (v - T::cst(i as f64 / k * TAU)).scale(k / TAU);
         let t = T::cst(1.0) - s;
-        let p = &self.pieces[i];
+        let p = &self.0.pieces[i];
         let w = [
             t * t * t,
             (s * t * t).scale(3.0),
@@ -205,13 +223,13 @@ impl CrossSection for BezierLoop {
     /// `d cs / d v = B_i'(s) * k / (2 pi)`.
     fn derivative(&self, v: f64) -> DVec2 {
         let (i, s) = self.locate(v);
-        deriv(&self.pieces[i], s) * (self.pieces.len() as f64 / TAU)
+        deriv(&self.0.pieces[i], s) * (self.0.pieces.len() as f64 / TAU)
     }
 
     /// Winding number of the loop about `p`, counted along the ray `p + (x, 0)`, `x > 0`.
     fn contains(&self, p: DVec2) -> bool {
         let mut winding = 0i32;
-        for piece in &self.pieces {
+        for piece in &self.0.pieces {
             let [c0, c1, c2, c3] = power(piece);
             let y = Cubic::new([c0.y - p.y, c1.y, c2.y, c3.y]);
             for s in y.roots_between(0.0, 1.0, S_TOL) {
@@ -233,13 +251,13 @@ impl CrossSection for BezierLoop {
     }
 
     fn bounding_radius(&self) -> f64 {
-        self.radius
+        self.0.radius
     }
 
     fn intersect_line(&self, p: DVec2, dir: DVec2) -> LineCrossings {
         let mut out = LineCrossings::new();
         let d2 = dir.length_squared();
-        for (i, piece) in self.pieces.iter().enumerate() {
+        for (i, piece) in self.0.pieces.iter().enumerate() {
             for s in Self::cross_cubic(piece, p, dir).roots_between(0.0, 1.0, S_TOL) {
                 if s >= 1.0 || out.is_full() {
                     continue;
@@ -253,7 +271,7 @@ impl CrossSection for BezierLoop {
 
     fn monotone_breaks(&self) -> Vec<f64> {
         let mut breaks = Vec::new();
-        for (i, piece) in self.pieces.iter().enumerate() {
+        for (i, piece) in self.0.pieces.iter().enumerate() {
             let [_, c1, c2, c3] = power(piece);
             let mut ss = vec![0.0];
             // x'(s), y'(s): quadratics; inflections: x' y'' - y' x'', a polynomial of degree <= 2
@@ -272,7 +290,7 @@ impl CrossSection for BezierLoop {
             ss.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
             breaks.extend(
                 ss.into_iter()
-                    .map(|s| (i as f64 + s) / self.pieces.len() as f64 * TAU),
+                    .map(|s| (i as f64 + s) / self.0.pieces.len() as f64 * TAU),
             );
         }
         breaks.push(TAU);
@@ -280,7 +298,7 @@ impl CrossSection for BezierLoop {
     }
 
     fn orientation(&self) -> f64 {
-        self.orientation
+        self.0.orientation
     }
 }
 
@@ -299,7 +317,7 @@ fn inflection_poly(c1: DVec2, c2: DVec2, c3: DVec2) -> Cubic {
 impl BezierLoop {
     fn on_boundary(&self, p: DVec2) -> bool {
         // Cheap exact-boundary check for points on an anchor.
-        self.pieces.iter().any(|piece| piece[0] == p)
+        self.0.pieces.iter().any(|piece| piece[0] == p)
     }
 }
 
