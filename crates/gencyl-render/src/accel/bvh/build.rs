@@ -942,12 +942,15 @@ impl Bvh {
         let center = DVec3::from_array(std::array::from_fn(|k| {
             0.5 * (fin(b.min[k]) + fin(b.max[k]))
         }));
-        let (mut nodes, root, depth) = build_clustered(&mut prims, 0, 1, center, cluster_min);
+        let (nodes, root, depth) = build_clustered(&mut prims, 0, 1, center, cluster_min);
         assert!(
             depth < MAX_DEPTH,
             "BVH depth {depth} exceeds the traversal stack"
         );
-        nodes.shrink_to_fit();
+        // No shrink_to_fit: the reserve past the written nodes was never touched (it is not
+        // resident), and shrinking an over-aligned Vec reallocates and copies the whole array
+        // (the allocator's in-place realloc keeps only 16-byte alignment), which would raise
+        // the build's peak by the size of the tree.
         Bvh {
             nodes,
             root: Some(root),

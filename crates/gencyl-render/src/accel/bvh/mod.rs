@@ -124,9 +124,10 @@ impl Bvh {
         self.bounds
     }
 
-    /// Bytes of nodes and indices (allocated capacity).
+    /// Bytes of nodes and indices: the nodes written (the build reserves a bound and never
+    /// touches the rest, so it is not resident) and the indices' allocation.
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.capacity() * size_of::<Node4>() + self.indices.capacity() * size_of::<u32>()
+        self.nodes.len() * size_of::<Node4>() + self.indices.capacity() * size_of::<u32>()
     }
 
     /// Node count, depth, memory.
