@@ -443,7 +443,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     pub(crate) fn side_roots(&self, o: DVec3, d: DVec3, method: Method, out: &mut SideRoots) {
         let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
         if method == Method::Round {
-            for (a, b) in prefilter::candidate_ranges(self, o, d) {
+            for (a, b) in prefilter::candidate_ranges(self, o, d, true) {
                 round::roots(self, o, d, widen(a, b, lo, hi), out);
             }
             return;
@@ -453,7 +453,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 return;
             }
             let quad = branches::Quadric::new(self, o, d);
-            for (a, b) in prefilter::candidate_ranges(self, o, d) {
+            for (a, b) in prefilter::candidate_ranges(self, o, d, false) {
                 let (a, b) = widen(a, b, lo, hi);
                 if self.oblique(d, a, b) {
                     // Away from perpendicular the roots of `g` are simple and well apart, and
@@ -488,7 +488,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             radius: r,
         };
         let mut found = ArrayVec::new();
-        for (a, b) in prefilter::candidate_ranges(self, o, d) {
+        for (a, b) in prefilter::candidate_ranges(self, o, d, false) {
             let (a, b) = widen(a, b, lo, hi);
             if !self.oblique(d, a, b) {
                 prism::roots(self, o, d, (a, b), out);
@@ -865,7 +865,7 @@ mod tests {
     /// reference isolator (intervals, halving) on the frame formula.
     fn roots_both_ways(cyl: &Cyl, o: DVec3, d: DVec3) -> (Vec<f64>, Vec<f64>) {
         let (mut fast, mut reference) = (Vec::new(), Vec::new());
-        for (a, b) in prefilter::candidate_ranges(cyl, o, d) {
+        for (a, b) in prefilter::candidate_ranges(cyl, o, d, false) {
             let (a, b) = widen(a, b, -U_MARGIN, 1.0 + U_MARGIN);
             fast.extend(cyl.radial_roots_between(o, d, 1.0, a, b));
             let mut us = ArrayVec::new();
@@ -1102,7 +1102,7 @@ mod tests {
                 let o = target - 0.3 * d;
                 let mut opts = cyl.radial_options(d, 1.0);
                 opts.max_evaluations = 300;
-                for (a, b) in prefilter::candidate_ranges(&cyl, o, d) {
+                for (a, b) in prefilter::candidate_ranges(&cyl, o, d, false) {
                     let (a, b) = widen(a, b, -U_MARGIN, 1.0 + U_MARGIN);
                     let g = Radial {
                         cyl: &cyl,
