@@ -165,7 +165,11 @@ struct ExportArgs {
     /// 4:3 image of about `--rays` pixels) as a ray file.
     #[arg(long)]
     camera_rays: Option<PathBuf>,
-    /// Camera rays for `--camera-rays` (at most 2^26).
+    /// Also write bench's incoherent rays on this scene (as many as the camera rays, from a
+    /// sphere about the fibers through random points of their box) as a ray file.
+    #[arg(long)]
+    incoherent_rays: Option<PathBuf>,
+    /// Camera rays for `--camera-rays` (and as many for `--incoherent-rays`; at most 2^26).
     #[arg(long, default_value_t = 76_800, value_parser = clap::value_parser!(u32).range(1..=1 << 26))]
     rays: u32,
     /// Fiber radius for a `.hair` model (default: half the file's thickness).
@@ -1166,7 +1170,10 @@ fn bench_rays(
 
 fn export_command(args: ExportArgs) -> Result<()> {
     check_output(&args.output, &["toml"])?;
-    if let Some(p) = &args.camera_rays {
+    for p in [&args.camera_rays, &args.incoherent_rays]
+        .into_iter()
+        .flatten()
+    {
         check_output(p, &["csv", "txt", "rays"])?;
     }
     if args.radius.is_some() && !is_hair(&args.scene) {
@@ -1186,31 +1193,63 @@ fn export_command(args: ExportArgs) -> Result<()> {
         args.output.display(),
         desc.cylinders.len()
     );
-    if let Some(path) = &args.camera_rays {
+    if args.camera_rays.is_some() || args.incoherent_rays.is_some() {
         let image = bench_image(args.rays)?;
         let camera = desc.camera;
         let world = World::new(desc);
-        let rays = bench_rays(&world, camera, image);
-        let mut text = String::from("ox,oy,oz,dx,dy,dz\n");
-        for r in &rays {
-            use std::fmt::Write as _;
-            let (o, d) = (r.origin, r.dir);
-            let _ = writeln!(
-                text,
-                "{:?},{:?},{:?},{:?},{:?},{:?}",
-                o.x, o.y, o.z, d.x, d.y, d.z
-            );
+        let [camera_rays, incoherent] = bench_ray_sets(&world, camera, image);
+        for (path, rays, kind) in [
+            (&args.camera_rays, camera_rays, "camera"),
+            (&args.incoherent_rays, incoherent, "incoherent"),
+        ] {
+            if let Some(path) = path {
+                write_rays(path, &rays)?;
+                eprintln!(
+                    "{}: {} {kind} rays ({}x{} image)",
+                    path.display(),
+                    rays.len(),
+                    image.0,
+                    image.1
+                );
+            }
         }
-        write_atomically(path, text.as_bytes())?;
-        eprintln!(
-            "{}: {} camera rays ({}x{})",
-            path.display(),
-            rays.len(),
-            image.0,
-            image.1
-        );
     }
     Ok(())
+}
+
+/// Writes rays as a ray file (interface.md section 3), with a header line.
+fn write_rays(path: &Path, rays: &[gencyl::Ray]) -> Result<()> {
+    let mut text = String::from("ox,oy,oz,dx,dy,dz\n");
+    for r in rays {
+        use std::fmt::Write as _;
+        let (o, d) = (r.origin, r.dir);
+        let _ = writeln!(
+            text,
+            "{:?},{:?},{:?},{:?},{:?},{:?}",
+            o.x, o.y, o.z, d.x, d.y, d.z
+        );
+    }
+    write_atomically(path, text.as_bytes())
+}
+
+/// Bench's two ray sets on a scene: `camera`, one ray per pixel centre of `image`, and
+/// `incoherent`, as many rays from a sphere about the fibers' box through random points of it
+/// (a fixed seed).
+fn bench_ray_sets(
+    world: &World,
+    camera: Option<gencyl_render::optics::Camera>,
+    image: (u32, u32),
+) -> [Vec<gencyl::Ray>; 2] {
+    let camera_rays = bench_rays(world, camera, image);
+    let b = world.scene.bvh().bounds();
+    let incoherent = synth::rays_through_box(
+        camera_rays.len(),
+        1,
+        b.min,
+        b.max,
+        (b.max - b.min).max_element(),
+    );
+    [camera_rays, incoherent]
 }
 
 /// Writes `bytes` to `path` through a temporary file beside it, renamed into place: on error
@@ -1356,15 +1395,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let peak_mib =
             limits::peak_resident_memory().map_or(f64::NAN, |b| b as f64 / (1 << 20) as f64);
         let n = world.scene.cylinders().len();
-        let camera_rays = bench_rays(&world, camera, (width, height));
-        let b = world.scene.bvh().bounds();
-        let incoherent = synth::rays_through_box(
-            camera_rays.len(),
-            1,
-            b.min,
-            b.max,
-            (b.max - b.min).max_element(),
-        );
+        let [camera_rays, incoherent] = bench_ray_sets(&world, camera, (width, height));
         for (kind, rays) in [("camera", &camera_rays), ("incoherent", &incoherent)] {
             if !wanted(&args.kinds, kind) {
                 continue;

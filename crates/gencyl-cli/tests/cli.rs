@@ -1067,6 +1067,7 @@ fn export_writes_the_same_geometry() {
     );
     let out = scratch("export-out.toml", b"");
     let rays = scratch("export-rays.csv", b"");
+    let incoherent = scratch("export-incoherent.csv", b"");
     ok_err(&[
         "export",
         path(&scene),
@@ -1074,6 +1075,8 @@ fn export_writes_the_same_geometry() {
         path(&out),
         "--camera-rays",
         path(&rays),
+        "--incoherent-rays",
+        path(&incoherent),
         "--rays",
         "3000",
     ]);
@@ -1124,6 +1127,32 @@ fn export_writes_the_same_geometry() {
         }
     }
     assert!(strand_v_differs > 0, "the strand frame is not Frenet's");
+    // Bench's incoherent set: as many rays, from a sphere about the fibers, about half of them
+    // hitting (they aim at random points of the fibers' box), with the same hits on both files.
+    let inc_text = std::fs::read_to_string(&incoherent).unwrap();
+    assert_eq!(
+        inc_text.lines().count(),
+        1 + 63 * 47,
+        "as many as the camera rays"
+    );
+    let a = ok(&["raycast", path(&scene), path(&incoherent)], None);
+    let b = ok(&["raycast", path(&out), path(&incoherent)], None);
+    let (ra, rb) = (rows(&a), rows(&b));
+    assert_eq!(ra.len(), rb.len(), "same number of hits");
+    assert!(
+        ra.len() > 100 && ra.len() < 63 * 47,
+        "some incoherent rays hit, not all: {}",
+        ra.len()
+    );
+    let origins: std::collections::HashSet<&str> = inc_text
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplitn(4, ',').last().unwrap())
+        .collect();
+    assert!(
+        origins.len() > 1000,
+        "rays from many origins, not a camera's one"
+    );
     let elliptical = scratch(
         "export-ellipse.toml",
         b"[[strand]]\npoints = [[0, 0, 0], [1, 0.3, 0], [2, 0, 0.2]]\nradius = [0.1, 0.1]\nellipticity = 0.5\n",
