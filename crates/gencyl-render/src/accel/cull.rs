@@ -289,6 +289,16 @@ fn within(q: &[DVec2; 4], reach: f64) -> bool {
     if q.iter().all(|p| p.y > reach) || q.iter().all(|p| p.y < -reach) {
         return false;
     }
+    // Quick reject: every hull point lies within `dev` of the chord `q0 q3` (the distance to
+    // a segment is convex, so its largest value on the hull is at a corner: 0 at the chord's
+    // ends, at most `dev` at the inner points), so the hull stays beyond reach when the chord
+    // does by more than `dev`.
+    let dev2 =
+        segment_distance2_from(q[1], q[0], q[3]).max(segment_distance2_from(q[2], q[0], q[3]));
+    let chord2 = segment_distance2(q[0], q[3]);
+    if chord2 > r2 && (chord2.sqrt() - dev2.sqrt()) > reach {
+        return false;
+    }
     // The hull is the union of the four triangles of the points; outside it, the nearest
     // hull point lies on one of the six segments between the points.
     const TRIS: [[usize; 3]; 4] = [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]];
@@ -305,6 +315,12 @@ fn within(q: &[DVec2; 4], reach: f64) -> bool {
 fn in_triangle(a: DVec2, b: DVec2, c: DVec2) -> bool {
     let (s1, s2, s3) = (a.perp_dot(b), b.perp_dot(c), c.perp_dot(a));
     (s1 >= 0.0 && s2 >= 0.0 && s3 >= 0.0) || (s1 <= 0.0 && s2 <= 0.0 && s3 <= 0.0)
+}
+
+/// The squared distance from `p` to the segment `a b`.
+#[inline]
+fn segment_distance2_from(p: DVec2, a: DVec2, b: DVec2) -> f64 {
+    segment_distance2(a - p, b - p)
 }
 
 /// The squared distance from the origin to the segment `a b`.
