@@ -135,11 +135,15 @@ pub fn cast(
     };
     // x 2^k, exact (barring overflow and underflow) for |k| up to 2046, in two steps since
     // 2^k alone may be out of range.
-    let scale = |x: f64, k: i32| x * 2f64.powi(k / 2) * 2f64.powi(k - k / 2);
-    let ray = Ray::new(
-        ray.origin,
-        ray.dir * 2f64.powi(e / 2) * 2f64.powi(e - e / 2),
-    );
+    // (The common case, e = 0, skips the powers.)
+    let scale = |x: f64, k: i32| {
+        if k == 0 {
+            x
+        } else {
+            x * 2f64.powi(k / 2) * 2f64.powi(k - k / 2)
+        }
+    };
+    let ray = Ray::new(ray.origin, ray.dir.map(|x| scale(x, e)));
     // The scaled ray's t': o + t' (d 2^e) = o + t d, so t = t' 2^e.
     let start = out.len();
     let tmin = scale(tmin, -e);
