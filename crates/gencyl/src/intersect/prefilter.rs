@@ -159,6 +159,11 @@ pub(crate) fn candidate_ranges<C: CrossSection, S: SweepRule>(
     out
 }
 
+/// The coefficients on `[lo, hi]` of `[0, 1]` (reparametrised to `[0, 1]`).
+fn restrict(b: &Bernstein, lo: f64, hi: f64) -> Bernstein {
+    crate::bernstein::Bernstein(*b).restrict(lo, hi).0
+}
+
 /// Appends the range to the sorted list, merged with the last one where they touch; past
 /// [`MAX_RANGES`] the last range is stretched over it.
 fn add(out: &mut ArrayVec<(f64, f64), MAX_RANGES>, (lo, hi): (f64, f64)) {
@@ -236,29 +241,6 @@ fn core_range(f: &[f64; DEGREE + 1]) -> Option<(f64, f64)> {
         return None;
     }
     Some(((u - half).max(0.0), (u + half).min(1.0)))
-}
-
-/// De Casteljau at `s`: the Bernstein coefficients on `[0, s]` and on `[s, 1]`.
-fn split_at(b: &Bernstein, s: f64) -> (Bernstein, Bernstein) {
-    let mut work = *b;
-    let (mut left, mut right) = ([0.0; DEGREE + 1], [0.0; DEGREE + 1]);
-    for k in 0..=DEGREE {
-        left[k] = work[0];
-        right[DEGREE - k] = work[DEGREE - k];
-        for i in 0..DEGREE - k {
-            work[i] += s * (work[i + 1] - work[i]);
-        }
-    }
-    (left, right)
-}
-
-/// The coefficients on `[lo, hi]` of `[0, 1]` (reparametrised to `[0, 1]`).
-fn restrict(b: &Bernstein, lo: f64, hi: f64) -> Bernstein {
-    let left = if hi == 1.0 { *b } else { split_at(b, hi).0 };
-    if lo == 0.0 {
-        return left;
-    }
-    split_at(&left, lo / hi).1
 }
 
 #[cfg(test)]
