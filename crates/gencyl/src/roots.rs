@@ -541,11 +541,25 @@ pub(crate) fn bracketed_root_from(
     fb: f64,
     x0: f64,
 ) -> Option<f64> {
+    converged_root_from(value, a, b, fa, fb, x0).map(|(x, _)| x)
+}
+
+/// [`bracketed_root_from`], and whether the bracket closed to the resolution of `f64` (or hit
+/// an exact zero): `false` when the iteration cap was reached first, and the end returned
+/// (the one with the smaller residual) need not be near a root.
+pub(crate) fn converged_root_from(
+    value: &impl Fn(f64) -> (f64, f64),
+    a: f64,
+    b: f64,
+    fa: f64,
+    fb: f64,
+    x0: f64,
+) -> Option<(f64, bool)> {
     if fa == 0.0 {
-        return Some(a);
+        return Some((a, true));
     }
     if fb == 0.0 {
-        return Some(b);
+        return Some((b, true));
     }
     if !(fa.signum() != fb.signum()) {
         return None;
@@ -554,10 +568,11 @@ pub(crate) fn bracketed_root_from(
     let rising = fb > 0.0;
     let mut x = if x0 > a && x0 < b { x0 } else { 0.5 * (a + b) };
     let mut last_width = b - a;
+    let mut converged = false;
     for _ in 0..200 {
         let (fx, dfx) = value(x);
         if fx == 0.0 || !fx.is_finite() {
-            return fx.is_finite().then_some(x);
+            return fx.is_finite().then_some((x, true));
         }
         if (fx > 0.0) == rising {
             (b, fb) = (x, fx);
@@ -566,6 +581,7 @@ pub(crate) fn bracketed_root_from(
         }
         let width = b - a;
         if width <= 2.0 * f64::EPSILON * a.abs().max(b.abs()).max(1e-300) {
+            converged = true;
             break;
         }
         let step = fx / dfx;
@@ -589,11 +605,13 @@ pub(crate) fn bracketed_root_from(
         };
         last_width = width;
         if x <= a || x >= b {
+            // The midpoint of a bracket with no float inside.
+            converged = true;
             break;
         }
     }
     // The end with the smaller residual.
-    Some(if fa.abs() <= fb.abs() { a } else { b })
+    Some((if fa.abs() <= fb.abs() { a } else { b }, converged))
 }
 
 #[cfg(test)]
@@ -613,6 +631,33 @@ mod tests {
             quadratic_roots(1.0, -2.0, 1.0).as_slice(),
             &[1.0],
             "double root once"
+        );
+    }
+
+    /// The bracketed solver says whether its bracket closed: it does for a smooth function
+    /// (the root to an ulp), and not when a wrong slope keeps it crawling by ulps until the
+    /// iteration cap, where the end it returns is far from the root.
+    #[test]
+    fn bracketed_root_reports_convergence() {
+        let f = |x: f64| x * x - 2.0;
+        let (r, converged) =
+            converged_root_from(&|x: f64| (f(x), 2.0 * x), 0.0, 2.0, f(0.0), f(2.0), 1.0).unwrap();
+        assert!(converged, "a smooth root converges");
+        assert!((r - 2f64.sqrt()).abs() <= 4.0 * f64::EPSILON, "root {r}");
+        // An infinite slope: every Newton step is zero, so the iterate creeps by an ulp.
+        let (r, converged) = converged_root_from(
+            &|x: f64| (f(x), f64::INFINITY),
+            0.0,
+            2.0,
+            f(0.0),
+            f(2.0),
+            1.0,
+        )
+        .unwrap();
+        assert!(!converged, "the cap was reached: {r}");
+        assert!(
+            (r - 2f64.sqrt()).abs() > 0.1,
+            "the end returned is not the root: {r}"
         );
     }
 

@@ -33,7 +33,7 @@ use crate::bernstein::Bernstein;
 use crate::cylinder::GeneralizedCylinder;
 use crate::frame::Frame;
 use crate::real::{Interval, Real, V2};
-use crate::roots::bracketed_root;
+use crate::roots::{bracketed_root, converged_root_from};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
@@ -114,8 +114,15 @@ impl Polys {
     /// `H` of branch `sign` at `s`, in `f64` (the same value [`Self::branch`] gives).
     #[inline]
     fn h(&self, s: f64, sign: f64) -> f64 {
+        let (minus_p, across) = self.parts(s);
+        minus_p + sign * across
+    }
+
+    /// `(-P, Z' sqrt(D))` at `s` (`D` clamped at 0): both branches at once, `H± = -P ± Z' sqrt(D)`.
+    #[inline]
+    fn parts(&self, s: f64) -> (f64, f64) {
         let root = self.disc.eval(s).max(0.0).sqrt();
-        -self.p.eval(s) + sign * self.z_s.eval(s) * root
+        (-self.p.eval(s), self.z_s.eval(s) * root)
     }
 
     /// `(H, H')` of branch `sign` at `s`, in `f64`.
@@ -127,7 +134,13 @@ impl Polys {
         let (zs, zss) = self.z_s.eval_with_derivative(s);
         let (p, ps) = self.p.eval_with_derivative(s);
         let h = -p + sign * zs * root;
-        let dh = -ps + sign * (zss * root + zs * dsc_s / (2.0 * root));
+        // Where D <= 0 the clamped branch is -P (its slope -P'), not the sqrt's infinite slope
+        // (Newton's method would crawl by ulps there).
+        let dh = if root > 0.0 {
+            -ps + sign * (zss * root + zs * dsc_s / (2.0 * root))
+        } else {
+            -ps
+        };
         (h, dh)
     }
 }
@@ -300,25 +313,20 @@ fn product_roots(k: &Polys) -> Option<ArrayVec<(f64, f64), 16>> {
             if changes == 0 {
                 continue;
             }
-            // One sign change: one root of G, provided both branches are defined across the
-            // cell (D > 0 on it; where D < 0 the clamped branches both read -P and may change
-            // sign where P does). Otherwise a narrower cell about the root settles it.
-            if changes == 1 && bounds(&k.disc.restrict(s0, s1), k.err_disc).lo > 0.0 {
-                // Exactly one branch changes sign across the cell: the root is on it.
-                let h = |sign: f64| (k.h(s0, sign), k.h(s1, sign));
-                let ((m0, m1), (p0, p1)) = (h(-1.0), h(1.0));
-                let sign = match (m0 * m1 < 0.0, p0 * p1 < 0.0) {
-                    (true, false) => -1.0,
-                    (false, true) => 1.0,
-                    _ => return None,
-                };
-                let (fa, fb) = if sign < 0.0 { (m0, m1) } else { (p0, p1) };
-                let r = bracketed_root(&|s: f64| k.branch(s, sign), s0, s1, fa, fb)?;
-                if found.is_full() {
-                    return None;
+            // One sign change: one root of G, on the branch that changes sign across the cell.
+            if changes == 1 {
+                match cell_root(k, s0, s1) {
+                    CellRoot::Found(r, sign) => {
+                        if found.is_full() {
+                            return None;
+                        }
+                        found.push((r, sign));
+                        continue;
+                    }
+                    CellRoot::GiveUp => return None,
+                    // A narrower cell about the root settles it.
+                    CellRoot::Split => {}
                 }
-                found.push((r, sign));
-                continue;
             }
             if stack.is_full() {
                 return None;
@@ -330,6 +338,54 @@ fn product_roots(k: &Polys) -> Option<ArrayVec<(f64, f64), 16>> {
         stack.push((l, s0, m));
     }
     Some(found)
+}
+
+/// What [`cell_root`] concludes.
+enum CellRoot {
+    /// The root `s` of `G` in the cell, on branch `sign`.
+    Found(f64, f64),
+    /// The cell needs splitting.
+    Split,
+    /// The product method cannot settle the range.
+    GiveUp,
+}
+
+/// The root of `G` in `[s0, s1]`, a cell where `G` has exactly one (simple) root `r`.
+///
+/// On the side of `r` where `G < 0`, `D > 0` and the branches have opposite signs (`G = H+ H-`);
+/// where `G > 0` they have the same sign, also where `D < 0` (both read `-P` there, `sqrt(D)`
+/// clamped at 0). So exactly one branch `H_s` changes sign between the cell's ends, and Newton's
+/// method in the bracket finds a point `x` where it changes sign. If `D(x)` exceeds its rounding
+/// bound, `H_s` is the unclamped branch about `x`, so `x` is a root of `G`: it is `r`. Otherwise
+/// (a zero of `-P` where `D < 0`, or `r` where the ray grazes the sphere) `x` is taken only if
+/// `D > 0` on the whole cell (then `H_s` has no other zero there); if not, the cell is split.
+fn cell_root(k: &Polys, s0: f64, s1: f64) -> CellRoot {
+    let ((q0, c0), (q1, c1)) = (k.parts(s0), k.parts(s1));
+    let (m0, m1, p0, p1) = (q0 - c0, q1 - c1, q0 + c0, q1 + c1);
+    let (sign, fa, fb) = match (m0 * m1 < 0.0, p0 * p1 < 0.0) {
+        (true, false) => (-1.0, m0, m1),
+        (false, true) => (1.0, p0, p1),
+        // Rounding at an end: only a cell where D > 0 throughout is decided without it.
+        _ if positive_disc(k, s0, s1) => return CellRoot::GiveUp,
+        _ => return CellRoot::Split,
+    };
+    // Newton's method from the bracket's secant point (f64 cannot make it leave the bracket).
+    let start = s0 + (s1 - s0) * (fa / (fa - fb));
+    let Some((r, converged)) =
+        converged_root_from(&|s: f64| k.branch(s, sign), s0, s1, fa, fb, start)
+    else {
+        return CellRoot::GiveUp;
+    };
+    if converged && k.disc.eval(r) > k.err_disc || positive_disc(k, s0, s1) {
+        CellRoot::Found(r, sign)
+    } else {
+        CellRoot::Split
+    }
+}
+
+/// Whether `D > 0` on all of `[s0, s1]`, by its coefficients there and their rounding bound.
+fn positive_disc(k: &Polys, s0: f64, s1: f64) -> bool {
+    bounds(&k.disc.restrict(s0, s1), k.err_disc).lo > 0.0
 }
 
 /// The side roots of a round fiber for the local ray `o + w d` on the `u` range `[u0, u1]`.
