@@ -100,12 +100,13 @@ struct Crossing {
     hit: Pending,
 }
 
-/// A side root still without its section angle (for the Round method) and normal, or a
-/// finished hit.
+/// A side root still without its section angle (for the Round method) and normal, a finished
+/// hit, or a Round method's root cell not yet polished (its `t` a lower bound).
 #[derive(Clone, Copy, Debug)]
 enum Pending {
     Side(SideRoot),
     Done(Hit),
+    Cell(usize),
 }
 
 /// `g(u) = q^2 (|phi(u)|^2 - R^2) = |q phi|^2 - R^2 q^2`: negative exactly where the ray's
@@ -252,15 +253,25 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let o = o_local + t0 * d;
 
         let mut roots = SideRoots::new();
+        let mut deferred = round::Deferred::new();
         let method = self.resolve(method);
-        self.side_roots(o, d, method, &mut roots);
+        self.side_roots(o, d, method, &mut roots, &mut deferred);
         let mut found: ArrayVec<Crossing, MAX_CROSSINGS> = ArrayVec::new();
-        for r in &roots {
+        let side = |r: &SideRoot| {
             let t = t0 + r.w;
-            if t > tmin && t < tmax && t.is_finite() {
+            (t > tmin && t < tmax && t.is_finite()).then_some(Crossing {
+                t,
+                hit: Pending::Side(*r),
+            })
+        };
+        found.extend(roots.iter().filter_map(side));
+        for (i, w) in deferred.bounds() {
+            // The cell's crossing is no nearer than `t`: beyond `tmax` it cannot count.
+            let t = t0 + w;
+            if t < tmax {
                 found.push(Crossing {
                     t,
-                    hit: Pending::Side(*r),
+                    hit: Pending::Cell(i),
                 });
             }
         }
@@ -335,10 +346,24 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             .uniform_scale()
             .filter(|_| method == Method::Round);
         let mut last: Option<Hit> = None;
-        for c in &found {
+        let mut next = 0;
+        while next < found.len() {
+            let c = found[next];
+            next += 1;
             let h = match c.hit {
                 Pending::Done(h) => h,
                 Pending::Side(r) => self.finish_side(ray, (o, d), c.t, r, round),
+                Pending::Cell(i) => {
+                    // Reached: polished, and its roots take their places among the rest (no
+                    // nearer than the bound it was sorted by).
+                    let mut polished = SideRoots::new();
+                    deferred.polish(i, self, d, &mut polished);
+                    for c in polished.iter().filter_map(side) {
+                        let at = next + found[next..].partition_point(|k| k.t <= c.t);
+                        let _ = found.try_insert(at, c);
+                    }
+                    continue;
+                }
             };
             if last.is_some_and(|k| same(&h, &k)) {
                 continue;
@@ -439,12 +464,20 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         lo >= floor || hi <= -floor
     }
 
-    /// Every side root for the local ray `o + w d` (see the module docs).
-    pub(crate) fn side_roots(&self, o: DVec3, d: DVec3, method: Method, out: &mut SideRoots) {
+    /// Every side root for the local ray `o + w d` (see the module docs): in `out`, or for the
+    /// Round method possibly as cells in `deferred`, polished when reached.
+    pub(crate) fn side_roots(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        method: Method,
+        out: &mut SideRoots,
+        deferred: &mut round::Deferred,
+    ) {
         let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
         if method == Method::Round {
             for (a, b) in prefilter::candidate_ranges(self, o, d, true) {
-                round::roots(self, o, d, widen(a, b, lo, hi), out);
+                round::roots(self, o, d, widen(a, b, lo, hi), out, deferred);
             }
             return;
         }
@@ -1134,6 +1167,68 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A query that takes the `k`-th hit gets the `k`-th of the full list, though the Round
+    /// method leaves its roots unpolished until a query reaches them ([`round::Deferred`]), and
+    /// the full list comes sorted by `t`: curved round fibers (radii 1e-4 to 1e-1 of their
+    /// length, tapering), rays through points near the axis from random directions, some
+    /// nearly perpendicular to it, some from inside the fiber.
+    #[test]
+    fn each_accepted_hit_is_the_next_of_the_full_list() {
+        let mut rng = Rng(59);
+        let (mut later, mut rays) = (0, 0);
+        for case in 0..2000 {
+            let bezier: [DVec3; 4] = std::array::from_fn(|j| {
+                v3(j as f64 / 3.0, rng.range(-0.3, 0.3), rng.range(-0.3, 0.3))
+            });
+            let r = 10f64.powf(rng.range(-4.0, -1.0));
+            let mut spec = FiberSpec::round(bezier, r);
+            spec.major_radius = [r, r * rng.range(0.5, 1.5)];
+            spec.minor_radius = spec.major_radius;
+            let cyl = spec.build().unwrap();
+            let axis = crate::curve::CubicBezier::new(bezier);
+            let u = rng.range(0.0, 1.0);
+            let target = axis.point(u) + rng.unit() * rng.range(0.0, 1.2 * r);
+            let d = match case % 3 {
+                // Nearly perpendicular to the axis there.
+                0 => {
+                    let t = axis.d1(u).normalize();
+                    let across = t.any_orthonormal_vector();
+                    (across + 10f64.powf(rng.range(-12.0, -2.0)) * t).normalize()
+                }
+                _ => rng.unit(),
+            };
+            let o = if case % 7 == 0 {
+                target
+            } else {
+                target - 0.5 * d
+            };
+            let ray = Ray::new(o, d);
+            let mut all = Vec::new();
+            cyl.intersect_all(&ray, 0.0, f64::INFINITY, &mut all);
+            for w in all.windows(2) {
+                assert!(w[0].t <= w[1].t, "case {case}: not sorted {all:?}");
+            }
+            for (k, want) in all.iter().enumerate() {
+                let mut seen = 0;
+                let got = cyl
+                    .intersect_first_with(&ray, 0.0, f64::INFINITY, Method::Auto, |_| {
+                        seen += 1;
+                        seen > k
+                    })
+                    .unwrap_or_else(|| panic!("case {case}: no hit {k} of {all:?}"));
+                assert_eq!(
+                    (got.t, got.u, got.part),
+                    (want.t, want.u, want.part),
+                    "case {case}: hit {k}"
+                );
+                later += usize::from(k > 0);
+            }
+            rays += usize::from(!all.is_empty());
+        }
+        assert!(rays > 1500, "the rays should hit: {rays}");
+        assert!(later > 1000, "hits after the first: {later}");
     }
 
     /// Rays in a normal plane of a straight axis: the in-plane quadratic ([`Method::Radial`])

@@ -259,128 +259,206 @@ fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16
     }
 }
 
-/// Most cells [`product_roots`] examines before it leaves the range to [`branch_roots`].
+/// Most cells [`Product::cells`] examines before it leaves the range to [`branch_roots`].
 const PRODUCT_BUDGET: usize = 48;
 
-/// The roots of both branches at once, as `(s, sign)` ascending in `s`, where the ray is oblique
-/// to the axis on the whole range; `None` where this cannot be certified cheaply (then
-/// [`branch_roots`] on each stretch decides).
-///
-/// `G = H+ H- = P^2 - Z'^2 D` is a polynomial (degree 10, no square root, no singular end). If
-/// `Z'` keeps one sign on the range, `G(s) = 0` means `P = ± Z' sqrt(D)` with `D >= 0`: a root
-/// of exactly one branch, the one whose `H` changes sign there (the other, `G / H`, does not
-/// vanish near it); and every branch root is a root of `G`. So the branch roots are isolated by
-/// isolating `G`'s: a cell whose Bernstein coefficients (each of a sign that its rounding bound
-/// cannot flip) show no sign change holds no root, one sign change exactly one (Descartes'
-/// rule of signs in the Bernstein basis); where also `D > 0` on the cell, both branches are
-/// smooth there and `G = H+ H-` exactly, so the root is polished on its branch.
-fn product_roots(k: &Polys) -> Option<ArrayVec<(f64, f64), 16>> {
-    if !bounds(&k.z_s, k.err_z).excludes_zero() {
-        return None;
-    }
-    let pp: B11 = k.p.mul(&k.p);
-    let zz: B5 = k.z_s.mul(&k.z_s);
-    let zzd: B11 = zz.mul(&k.disc);
-    let g = pp.sub(&zzd);
-    // Rounding: the factors' own bounds carried through the products, and the products' and
-    // the cells' de Casteljau steps relative to the terms that cancel.
-    let (pm, zm, dm) = (k.p.magnitude(), k.z_s.magnitude(), k.disc.magnitude());
-    let err = 4.0
-        * (2.0 * pm * k.err_p
-            + k.err_p * k.err_p
-            + (2.0 * zm * k.err_z + k.err_z * k.err_z) * (dm + k.err_disc)
-            + zm * zm * k.err_disc)
-        + SLACK * (pp.magnitude() + zzd.magnitude());
-    let mut found: ArrayVec<(f64, f64), 16> = ArrayVec::new();
-    let mut stack: ArrayVec<(B11, f64, f64), 32> = ArrayVec::new();
-    stack.push((g, 0.0, 1.0));
-    let mut cells = 0;
-    while let Some((c, s0, s1)) = stack.pop() {
-        cells += 1;
-        if cells > PRODUCT_BUDGET {
-            return None;
-        }
-        if c.0.iter().any(|x| x.abs() <= err) {
-            // A coefficient whose sign rounding may flip: a narrower cell may settle it.
-            if s1 - s0 < 1e-6 || stack.is_full() {
-                return None;
-            }
-        } else {
-            let changes =
-                c.0.windows(2)
-                    .filter(|w| (w[0] > 0.0) != (w[1] > 0.0))
-                    .count();
-            if changes == 0 {
-                continue;
-            }
-            // One sign change: one root of G, on the branch that changes sign across the cell.
-            if changes == 1 {
-                match cell_root(k, s0, s1) {
-                    CellRoot::Found(r, sign) => {
-                        if found.is_full() {
-                            return None;
-                        }
-                        found.push((r, sign));
-                        continue;
-                    }
-                    CellRoot::GiveUp => return None,
-                    // A narrower cell about the root settles it.
-                    CellRoot::Split => {}
-                }
-            }
-            if stack.is_full() {
-                return None;
-            }
-        }
-        let m = 0.5 * (s0 + s1);
-        let (l, r) = c.split(0.5);
-        stack.push((r, m, s1));
-        stack.push((l, s0, m));
-    }
-    Some(found)
+/// `G = H+ H- = P^2 - Z'^2 D` on a range where `Z'` keeps one sign, with its rounding bound: the
+/// polynomial whose roots are both branches' ([`Product::cells`]).
+struct Product {
+    g: B11,
+    err: f64,
 }
 
-/// What [`cell_root`] concludes.
-enum CellRoot {
-    /// The root `s` of `G` in the cell, on branch `sign`.
-    Found(f64, f64),
-    /// The cell needs splitting.
+impl Product {
+    /// `G` of the range, where the ray is oblique to the axis on all of it (`Z'` keeps one
+    /// sign); `None` otherwise.
+    fn new(k: &Polys) -> Option<Self> {
+        if !bounds(&k.z_s, k.err_z).excludes_zero() {
+            return None;
+        }
+        let pp: B11 = k.p.mul(&k.p);
+        let zz: B5 = k.z_s.mul(&k.z_s);
+        let zzd: B11 = zz.mul(&k.disc);
+        // Rounding: the factors' own bounds carried through the products, and the products'
+        // and the cells' de Casteljau steps relative to the terms that cancel.
+        let (pm, zm, dm) = (k.p.magnitude(), k.z_s.magnitude(), k.disc.magnitude());
+        let err = 4.0
+            * (2.0 * pm * k.err_p
+                + k.err_p * k.err_p
+                + (2.0 * zm * k.err_z + k.err_z * k.err_z) * (dm + k.err_disc)
+                + zm * zm * k.err_disc)
+            + SLACK * (pp.magnitude() + zzd.magnitude());
+        Some(Product {
+            g: pp.sub(&zzd),
+            err,
+        })
+    }
+
+    /// The roots of both branches on `[a, b]` isolated, one per [`RootCell`], ascending, into
+    /// `found`; `None` where this cannot be certified cheaply (then [`branch_roots`] on each
+    /// stretch decides).
+    ///
+    /// If `Z'` keeps one sign, `G(s) = 0` means `P = ± Z' sqrt(D)` with `D >= 0`: a root of
+    /// exactly one branch, the one whose `H` changes sign there (the other, `G / H`, does not
+    /// vanish near it); and every branch root is a root of `G`. So the branch roots are isolated
+    /// by isolating `G`'s: a cell whose Bernstein coefficients (each of a sign that its rounding
+    /// bound cannot flip) show no sign change holds no root, one sign change exactly one
+    /// (Descartes' rule of signs in the Bernstein basis), on the branch [`RootCell::of`] names.
+    fn cells(&self, k: &Polys, a: f64, b: f64, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
+        let mut stack: ArrayVec<(B11, f64, f64), 32> = ArrayVec::new();
+        stack.push((self.g.restrict(a, b), a, b));
+        let mut cells = 0;
+        while let Some((c, s0, s1)) = stack.pop() {
+            cells += 1;
+            if cells > PRODUCT_BUDGET {
+                return None;
+            }
+            if c.0.iter().any(|x| x.abs() <= self.err) {
+                // A coefficient whose sign rounding may flip: a narrower cell may settle it.
+                if s1 - s0 < 1e-6 || stack.is_full() {
+                    return None;
+                }
+            } else {
+                let changes =
+                    c.0.windows(2)
+                        .filter(|w| (w[0] > 0.0) != (w[1] > 0.0))
+                        .count();
+                if changes == 0 {
+                    continue;
+                }
+                if changes == 1 {
+                    match RootCell::of(k, s0, s1) {
+                        Ok(cell) => {
+                            found.try_push(cell).ok()?;
+                            continue;
+                        }
+                        Err(Undecided::GiveUp) => return None,
+                        // A narrower cell about the root settles it.
+                        Err(Undecided::Split) => {}
+                    }
+                }
+                if stack.is_full() {
+                    return None;
+                }
+            }
+            let m = 0.5 * (s0 + s1);
+            let (l, r) = c.split(0.5);
+            stack.push((r, m, s1));
+            stack.push((l, s0, m));
+        }
+        Some(())
+    }
+}
+
+/// The roots of both branches at once, as `(s, sign)`, polished: [`Product::cells`] and
+/// [`settle_all`]; `None` where the product method cannot certify them.
+#[cfg(test)]
+fn product_roots(k: &Polys) -> Option<ArrayVec<(f64, f64), 16>> {
+    let mut cells = ArrayVec::new();
+    Product::new(k)?.cells(k, 0.0, 1.0, &mut cells)?;
+    let mut out = ArrayVec::new();
+    settle_all(k, &cells, &mut out)?;
+    Some(out)
+}
+
+/// The roots of the cells ([`settle`]) into `out`, or `None` if the product method cannot
+/// certify them.
+fn settle_all(k: &Polys, cells: &[RootCell], out: &mut ArrayVec<(f64, f64), 16>) -> Option<()> {
+    cells.iter().try_for_each(|cell| settle(k, cell, out))
+}
+
+/// A cell `[s0, s1]` where `G` has exactly one (simple) root `r`, and the branch `H_sign` that
+/// vanishes there: `fa` at `s0` and `fb` at `s1`, of opposite signs.
+#[derive(Clone, Copy, Debug)]
+struct RootCell {
+    s0: f64,
+    s1: f64,
+    sign: f64,
+    fa: f64,
+    fb: f64,
+}
+
+/// Why [`RootCell::of`] names no branch.
+enum Undecided {
+    /// Rounding at an end: a narrower cell settles it.
     Split,
     /// The product method cannot settle the range.
     GiveUp,
 }
 
-/// The root of `G` in `[s0, s1]`, a cell where `G` has exactly one (simple) root `r`.
-///
-/// On the side of `r` where `G < 0`, `D > 0` and the branches have opposite signs (`G = H+ H-`);
-/// where `G > 0` they have the same sign, also where `D < 0` (both read `-P` there, `sqrt(D)`
-/// clamped at 0). So exactly one branch `H_s` changes sign between the cell's ends, and Newton's
-/// method in the bracket finds a point `x` where it changes sign. If `D(x)` exceeds its rounding
-/// bound, `H_s` is the unclamped branch about `x`, so `x` is a root of `G`: it is `r`. Otherwise
-/// (a zero of `-P` where `D < 0`, or `r` where the ray grazes the sphere) `x` is taken only if
-/// `D > 0` on the whole cell (then `H_s` has no other zero there); if not, the cell is split.
-fn cell_root(k: &Polys, s0: f64, s1: f64) -> CellRoot {
-    let ((q0, c0), (q1, c1)) = (k.parts(s0), k.parts(s1));
-    let (m0, m1, p0, p1) = (q0 - c0, q1 - c1, q0 + c0, q1 + c1);
-    let (sign, fa, fb) = match (m0 * m1 < 0.0, p0 * p1 < 0.0) {
-        (true, false) => (-1.0, m0, m1),
-        (false, true) => (1.0, p0, p1),
-        // Rounding at an end: only a cell where D > 0 throughout is decided without it.
-        _ if positive_disc(k, s0, s1) => return CellRoot::GiveUp,
-        _ => return CellRoot::Split,
-    };
-    // Newton's method from the bracket's secant point (f64 cannot make it leave the bracket).
-    let start = s0 + (s1 - s0) * (fa / (fa - fb));
-    let Some((r, converged)) =
-        converged_root_from(&|s: f64| k.branch(s, sign), s0, s1, fa, fb, start)
-    else {
-        return CellRoot::GiveUp;
-    };
-    if converged && k.disc.eval(r) > k.err_disc || positive_disc(k, s0, s1) {
-        CellRoot::Found(r, sign)
-    } else {
-        CellRoot::Split
+impl RootCell {
+    /// The branch of the root of a cell where `G` has exactly one.
+    ///
+    /// On the side of `r` where `G < 0`, `D > 0` and the branches have opposite signs
+    /// (`G = H+ H-`); where `G > 0` they have the same sign, also where `D < 0` (both read `-P`
+    /// there, `sqrt(D)` clamped at 0). So exactly one branch changes sign between the cell's
+    /// ends; where rounding at an end hides which, only a cell with `D > 0` throughout is
+    /// decided without it (the product method gives up there, as it did before polishing).
+    fn of(k: &Polys, s0: f64, s1: f64) -> Result<Self, Undecided> {
+        let ((q0, c0), (q1, c1)) = (k.parts(s0), k.parts(s1));
+        let (m0, m1, p0, p1) = (q0 - c0, q1 - c1, q0 + c0, q1 + c1);
+        let (sign, fa, fb) = match (m0 * m1 < 0.0, p0 * p1 < 0.0) {
+            (true, false) => (-1.0, m0, m1),
+            (false, true) => (1.0, p0, p1),
+            _ if positive_disc(k, s0, s1) => return Err(Undecided::GiveUp),
+            _ => return Err(Undecided::Split),
+        };
+        Ok(RootCell {
+            s0,
+            s1,
+            sign,
+            fa,
+            fb,
+        })
     }
+
+    /// The root, polished on its branch and verified; `None` where it is not verified.
+    ///
+    /// Newton's method in the bracket finds a point `x` where `H_sign` changes sign. If `D(x)`
+    /// exceeds its rounding bound, `H_sign` is the unclamped branch about `x`, so `x` is a root
+    /// of `G`: it is `r`. Otherwise (a zero of `-P` where `D < 0`, or `r` where the ray grazes
+    /// the sphere) `x` is taken only if `D > 0` on the whole cell (then `H_sign` has no other
+    /// zero there).
+    fn polish(&self, k: &Polys) -> Option<f64> {
+        let (s0, s1, sign, fa, fb) = (self.s0, self.s1, self.sign, self.fa, self.fb);
+        // Newton's method from the bracket's secant point.
+        let start = s0 + (s1 - s0) * (fa / (fa - fb));
+        let (r, converged) =
+            converged_root_from(&|s: f64| k.branch(s, sign), s0, s1, fa, fb, start)?;
+        (converged && k.disc.eval(r) > k.err_disc || positive_disc(k, s0, s1)).then_some(r)
+    }
+
+    /// A lower bound of the ray parameter `w` of the cell's crossing (whose `z = Z ± sqrt(D)`
+    /// along `d / |d|`): `Z` is monotone on the range (`Z'` keeps one sign), so it is at least
+    /// its smaller end value on the cell, and `0 <= sqrt(D) <= r_max`. The margin covers the
+    /// rounding of `Z`, and a root that rounding puts on the other branch where both meet
+    /// (`D` at its rounding level).
+    fn w_bound(&self, k: &Polys, r_max: f64, len: f64) -> f64 {
+        let z = k.z.eval(self.s0).min(k.z.eval(self.s1));
+        let low = if self.sign < 0.0 { z - r_max } else { z };
+        let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z.abs() + r_max);
+        (low - margin) / len
+    }
+}
+
+/// The roots of a cell, as `(s, sign)`, into `out`: its own root where [`RootCell::polish`]
+/// verifies it, otherwise those of its halves isolated again; `None` where the product method
+/// cannot certify them.
+fn settle(k: &Polys, cell: &RootCell, out: &mut ArrayVec<(f64, f64), 16>) -> Option<()> {
+    if let Some(r) = cell.polish(k) {
+        return out.try_push((r, cell.sign)).ok();
+    }
+    if cell.s1 - cell.s0 < 1e-6 {
+        return None;
+    }
+    let product = Product::new(k)?;
+    let m = 0.5 * (cell.s0 + cell.s1);
+    for (a, b) in [(cell.s0, m), (m, cell.s1)] {
+        let mut halves = ArrayVec::new();
+        product.cells(k, a, b, &mut halves)?;
+        settle_all(k, &halves, out)?;
+    }
+    Some(())
 }
 
 /// Whether `D > 0` on all of `[s0, s1]`, by its coefficients there and their rounding bound.
@@ -388,13 +466,66 @@ fn positive_disc(k: &Polys, s0: f64, s1: f64) -> bool {
     bounds(&k.disc.restrict(s0, s1), k.err_disc).lo > 0.0
 }
 
-/// The side roots of a round fiber for the local ray `o + w d` on the `u` range `[u0, u1]`.
+/// A range's polynomials kept for [`Deferred`] cells, with the range `[u0, u1]` and `|d|`.
+struct DeferredRange {
+    k: Polys,
+    u: (f64, f64),
+    len: f64,
+}
+
+/// Root cells of the Round method whose polishing waits until a query reaches them, with a
+/// lower bound of each one's `w` ([`RootCell::w_bound`]): a nearest-hit query polishes the
+/// crossing it takes, not the exit behind it.
+pub(crate) struct Deferred {
+    ranges: ArrayVec<DeferredRange, DEFERRED_RANGES>,
+    cells: ArrayVec<(usize, RootCell, f64), 16>,
+}
+
+/// Ranges whose cells a [`Deferred`] keeps (a ray near a fiber usually has one; others are
+/// polished at once).
+const DEFERRED_RANGES: usize = 2;
+
+impl Deferred {
+    pub(crate) fn new() -> Self {
+        Deferred {
+            ranges: ArrayVec::new(),
+            cells: ArrayVec::new(),
+        }
+    }
+
+    /// The deferred cells: index and lower bound of `w`.
+    pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+        self.cells.iter().enumerate().map(|(i, c)| (i, c.2))
+    }
+
+    /// Polishes cell `i` into `out` (as [`roots`] would have given its roots).
+    pub(crate) fn polish<C: CrossSection, S: SweepRule>(
+        &self,
+        i: usize,
+        cyl: &GeneralizedCylinder<C, S>,
+        d: DVec3,
+        out: &mut SideRoots,
+    ) {
+        let (range, cell, _) = self.cells[i];
+        let r = &self.ranges[range];
+        let mut roots = ArrayVec::new();
+        if settle(&r.k, &cell, &mut roots).is_none() {
+            roots = stretch_roots(&r.k, cell.s0, cell.s1);
+        }
+        push_all(cyl, d, &r.k, r.u, r.len, &roots, out);
+    }
+}
+
+/// The side roots of a round fiber for the local ray `o + w d` on the `u` range `[u0, u1]`:
+/// polished into `out`, or where `deferred` has room and the product method isolates them,
+/// left there as cells.
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
     d: DVec3,
     (u0, u1): (f64, f64),
     out: &mut SideRoots,
+    deferred: &mut Deferred,
 ) {
     let Some([r0, r1]) = cyl.sweep.uniform_scale() else {
         return;
@@ -403,24 +534,67 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let r = [r0 + (r1 - r0) * u0, r0 + (r1 - r0) * u1];
     let k = Polys::new(piece.points, r, o, d);
     let len = d.length();
-    let found = product_roots(&k).unwrap_or_else(|| stretch_roots(&k));
-    for (s, sign) in found {
+    let Some(product) = Product::new(&k) else {
+        push_all(cyl, d, &k, (u0, u1), len, &stretch_roots(&k, 0.0, 1.0), out);
+        return;
+    };
+    let mut cells = ArrayVec::new();
+    if product.cells(&k, 0.0, 1.0, &mut cells).is_none() {
+        push_all(cyl, d, &k, (u0, u1), len, &stretch_roots(&k, 0.0, 1.0), out);
+        return;
+    }
+    if cells.is_empty() {
+        return;
+    }
+    let room = deferred.cells.remaining_capacity() >= cells.len();
+    if !deferred.ranges.is_full() && room {
+        let range = deferred.ranges.len();
+        let r_max = r[0].abs().max(r[1].abs());
+        for cell in cells {
+            let bound = cell.w_bound(&k, r_max, len);
+            deferred.cells.push((range, cell, bound));
+        }
+        deferred.ranges.push(DeferredRange {
+            k,
+            u: (u0, u1),
+            len,
+        });
+        return;
+    }
+    let mut found = ArrayVec::new();
+    if settle_all(&k, &cells, &mut found).is_none() {
+        found = stretch_roots(&k, 0.0, 1.0);
+    }
+    push_all(cyl, d, &k, (u0, u1), len, &found, out);
+}
+
+/// Records the roots `(s, sign)` of the range `[u0, u1]` as side roots.
+fn push_all<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    d: DVec3,
+    k: &Polys,
+    (u0, u1): (f64, f64),
+    len: f64,
+    roots: &[(f64, f64)],
+    out: &mut SideRoots,
+) {
+    for &(s, sign) in roots {
         // The crossing of the sphere: z = Z ± sqrt(D) along d / |d| from o.
         let w = (k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt()) / len;
         push(cyl, d, u0 + (u1 - u0) * s, w, out);
     }
 }
 
-/// The roots of both branches as `(s, sign)`, each branch on each stretch where `D >= 0`
-/// (between the roots of `D`) by [`branch_roots`]: the method for any angle.
-fn stretch_roots(k: &Polys) -> ArrayVec<(f64, f64), 16> {
+/// The roots on `[a, b]` of both branches as `(s, sign)`, each branch on each stretch where
+/// `D >= 0` (between the roots of `D`) by [`branch_roots`]: the method for any angle.
+fn stretch_roots(k: &Polys, a: f64, b: f64) -> ArrayVec<(f64, f64), 16> {
     let mut ends: ArrayVec<f64, 18> = ArrayVec::new();
-    ends.push(0.0);
+    ends.push(a);
     let mut zs = ArrayVec::new();
     k.disc
         .roots(&k.disc_s, k.err_disc, MIN_WIDTH, BUDGET, &mut zs);
-    ends.extend(zs);
-    ends.push(1.0);
+    ends.extend(zs.into_iter().filter(|&z| z > a && z < b));
+    ends.push(b);
     let mut found = ArrayVec::new();
     for w in ends.windows(2) {
         let (a, b) = (w[0], w[1]);
@@ -526,7 +700,7 @@ mod tests {
                 continue;
             };
             settled += 1;
-            let slow = stretch_roots(&k);
+            let slow = stretch_roots(&k, 0.0, 1.0);
             let mut slow: Vec<_> = slow.to_vec();
             slow.sort_by(|a, b| a.0.total_cmp(&b.0));
             // The branch method finds a grazing root on both branches; keep one of each pair.
