@@ -589,13 +589,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     ///
     /// `dr` is `r'`, the scale's rate for the unit circle.
     fn round_normal(&self, u: f64, v: f64, dr: f64) -> DVec3 {
-        self.round_normal_in(u, v, dr, &self.frame(u))
+        let f = self.frame(u);
+        let c = self.sweep.apply(u, V2::cst(self.section.point(v))).value();
+        self.round_normal_in(u, c.x * f.n + c.y * f.b, dr, &f)
     }
 
-    /// [`Self::round_normal`] with the frame at `u` given.
-    pub(crate) fn round_normal_in(&self, u: f64, v: f64, dr: f64, f: &Frame) -> DVec3 {
-        let c = self.sweep.apply(u, V2::cst(self.section.point(v))).value();
-        let off = c.x * f.n + c.y * f.b;
+    /// [`Self::round_normal`] at `u` with the frame there, `f`, and the offset `off = r e` of
+    /// the surface point from the axis given.
+    pub(crate) fn round_normal_in(&self, u: f64, off: DVec3, dr: f64, f: &Frame) -> DVec3 {
         let (d1, d2) = (self.axis.d1(u), self.axis.d2(u));
         let speed = d1.length();
         let dt = (d2 - d2.dot(f.t) * f.t) / speed;

@@ -111,13 +111,15 @@ impl Scene {
         mut exact: impl FnMut(u32, &GeneralizedCylinder, f64) -> f64,
     ) {
         tested.clear();
-        let space = RaySpace::new(ray);
+        // Made when the first leaf is reached (most rays miss the model).
+        let mut space: Option<RaySpace> = None;
         self.bvh.traverse(ray, tmin, tmax, |key, tmax| {
             let i = key >> PIECE_BITS;
             if tested.contains(&i) {
                 return tmax;
             }
             let c = &self.cylinders[i as usize];
+            let space = space.get_or_insert_with(|| RaySpace::new(ray));
             if !space.may_hit_piece(c, Piece(key & ((1 << PIECE_BITS) - 1)), tmin, tmax) {
                 return tmax;
             }

@@ -395,9 +395,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         round: Option<[f64; 2]>,
     ) -> Hit {
         let u = r.u.clamp(0.0, 1.0);
-        let frame = round.map(|_| self.frame(r.u));
+        // A round fiber's hit: the frame at `u` and the hit's offset from the axis there.
+        let frame = round.map(|_| (self.frame(r.u), o + r.w * d - self.axis.point(r.u)));
         let v = match &frame {
-            Some(f) => round::section_angle(self, (o, d), (r.u, r.w), f),
+            Some((f, e)) => round::section_angle(self, r.u, *e, f),
             None => r.v,
         };
         // v in [0, 2 pi): rem_euclid of a tiny negative angle can round up to 2 pi.
@@ -407,7 +408,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             v
         };
         let normal = match (round, frame) {
-            (Some([k0, k1]), Some(f)) if u == r.u => self.round_normal_in(u, v, k1 - k0, &f),
+            // The offset taken into the normal plane (the root's rounding leaves a trace of `t`).
+            (Some([k0, k1]), Some((f, e))) if u == r.u => {
+                self.round_normal_in(u, e - e.dot(f.t) * f.t, k1 - k0, &f)
+            }
             _ => self.normal(u, v),
         };
         Hit {

@@ -638,15 +638,14 @@ fn push<C: CrossSection, S: SweepRule>(
     out.push(SideRoot { u, w, v: f64::NAN });
 }
 
-/// The section angle of the side hit at `(u, w)` of the local ray `o + w d`, with `f` the
-/// frame at `u`: the offset from the axis in the frame, through the rule's inverse.
+/// The section angle of a side hit at `u` whose offset from the axis is `e`, with `f` the
+/// frame at `u`: the offset in the frame, through the rule's inverse.
 pub(crate) fn section_angle<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
-    (o, d): (DVec3, DVec3),
-    (u, w): (f64, f64),
+    u: f64,
+    e: DVec3,
     f: &Frame,
 ) -> f64 {
-    let e = o + w * d - cyl.axis.point(u);
     let phi = cyl
         .sweep
         .inverse(u, V2::new(f.n.dot(e), f.b.dot(e)))
