@@ -3,6 +3,7 @@
 //! `gencyl raycast SCENE RAYS` writes the hits of every ray as CSV (see
 //! `gencyl_render::raycast` and interface.md section 3); `gencyl render [SCENE]` renders a
 //! PNG (the built-in scene without SCENE).
+#![forbid(unsafe_code)]
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};

@@ -19,6 +19,7 @@
 //! assert!((hit.t - 0.9).abs() < 1e-12);
 //! assert!((hit.normal - DVec3::Z).length() < 1e-12);
 //! ```
+#![forbid(unsafe_code)]
 
 pub mod bernstein;
 pub mod budget;

@@ -5,6 +5,8 @@
 //! - [`bvh`]: the bounding volume hierarchy (node layout and traversal in `bvh/mod.rs`, the
 //!   binned-SAH builder in `bvh/build.rs`);
 //! - [`cull`]: the ray-space test that rejects most missed axis pieces before the exact solver;
+//! - [`prefetch`]: loading the walk's next nodes and cylinders ahead of their use (the one
+//!   `unsafe` block of the project: a cache hint);
 //! - [`shapes`]: the analytic sphere and plane.
 //!
 //! Imports: the geometry crate only (its tests draw random fibers from
@@ -12,6 +14,7 @@
 
 pub mod bvh;
 pub mod cull;
+pub mod prefetch;
 pub mod scene;
 pub mod shapes;
 

@@ -5,6 +5,7 @@ use rayon::prelude::*;
 
 use crate::accel::bvh::Bvh;
 use crate::accel::cull::{Piece, RaySpace, level_for, pieces_bounds_under};
+use crate::accel::prefetch::prefetch;
 
 /// A hit on a scene: the cylinder's hit and the cylinder's number.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -113,19 +114,25 @@ impl Scene {
         tested.clear();
         // Made when the first leaf is reached (most rays miss the model).
         let mut space: Option<RaySpace> = None;
-        self.bvh.traverse(ray, tmin, tmax, |key, tmax| {
-            let i = key >> PIECE_BITS;
-            if tested.contains(&i) {
-                return tmax;
+        let cylinder = |key: u32| {
+            if let Some(c) = self.cylinders.get((key >> PIECE_BITS) as usize) {
+                prefetch(c);
             }
-            let c = &self.cylinders[i as usize];
-            let space = space.get_or_insert_with(|| RaySpace::new(ray));
-            if !space.may_hit_piece(c, Piece(key & ((1 << PIECE_BITS) - 1)), tmin, tmax) {
-                return tmax;
-            }
-            tested.push(i);
-            exact(i, c, tmax)
-        });
+        };
+        self.bvh
+            .traverse_prefetching(ray, tmin, tmax, cylinder, |key, tmax| {
+                let i = key >> PIECE_BITS;
+                if tested.contains(&i) {
+                    return tmax;
+                }
+                let c = &self.cylinders[i as usize];
+                let space = space.get_or_insert_with(|| RaySpace::new(ray));
+                if !space.may_hit_piece(c, Piece(key & ((1 << PIECE_BITS) - 1)), tmin, tmax) {
+                    return tmax;
+                }
+                tested.push(i);
+                exact(i, c, tmax)
+            });
     }
 
     /// The nearest hit with `tmin < t < tmax`. Of hits at the same `t` the one of the lowest
