@@ -89,9 +89,11 @@ pub(crate) struct SideRoot {
 
 pub(crate) type SideRoots = ArrayVec<SideRoot, 64>;
 
-/// Most crossings of one ray and one cylinder: the side roots, two caps, the fold envelope's
-/// roots (at most 8) and one per switch of the Frenet frame (at most 8).
-const MAX_CROSSINGS: usize = 64 + 2 + 8 + 8;
+/// Most crossings of one ray and one cylinder: the side roots and the Round method's unpolished
+/// cells, two caps, the fold envelope's roots (at most 8) and one per switch of the Frenet frame
+/// (at most 8), and room for the roots of polished cells beyond one each (a cell holds one root
+/// of `G`; only the branch-by-branch fallback at a graze can report it twice).
+const MAX_CROSSINGS: usize = 64 + round::MAX_DEFERRED + 2 + 8 + 8 + round::MAX_DEFERRED;
 
 /// A crossing at `t`, before or after its hit is finished.
 #[derive(Clone, Copy, Debug)]
@@ -354,8 +356,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 Pending::Done(h) => h,
                 Pending::Side(r) => self.finish_side(ray, (o, d), c.t, r, round),
                 Pending::Cell(i) => {
-                    // Reached: polished, and its roots take their places among the rest (no
+                    // Reached: polished, and its roots take the cell's place among the rest (no
                     // nearer than the bound it was sorted by).
+                    next -= 1;
+                    found.remove(next);
                     let mut polished = SideRoots::new();
                     deferred.polish(i, self, d, &mut polished);
                     for c in polished.iter().filter_map(side) {

@@ -478,8 +478,11 @@ struct DeferredRange {
 /// crossing it takes, not the exit behind it.
 pub(crate) struct Deferred {
     ranges: ArrayVec<DeferredRange, DEFERRED_RANGES>,
-    cells: ArrayVec<(usize, RootCell, f64), 16>,
+    cells: ArrayVec<(usize, RootCell, f64), MAX_DEFERRED>,
 }
+
+/// Most cells a [`Deferred`] keeps.
+pub(crate) const MAX_DEFERRED: usize = 16;
 
 /// Ranges whose cells a [`Deferred`] keeps (a ray near a fiber usually has one; others are
 /// polished at once).
