@@ -155,16 +155,16 @@ impl Bvh {
         self.traverse_prefetching(ray, tmin, tmax, |_| {}, visit);
     }
 
-    /// [`Self::traverse`], calling `prefetch(key)` with the first primitive of every leaf among
-    /// a node's children as the walk loads the node (before its box test), so the caller can
-    /// start loading that primitive's data (which the visit would otherwise wait for). The
+    /// [`Self::traverse`], calling `prefetch_leaf(key)` with the first primitive of every leaf
+    /// among a node's children as the walk loads the node (before its box test), so the caller
+    /// can start loading that primitive's data (which the visit would otherwise wait for). The
     /// walk does the same for its inner children's nodes.
     pub fn traverse_prefetching(
         &self,
         ray: &Ray,
         tmin: f64,
         tmax: f64,
-        prefetch: impl Fn(u32),
+        prefetch_leaf: impl Fn(u32),
         visit: impl FnMut(u32, f64) -> f64,
     ) {
         // Also refuses NaN bounds.
@@ -182,8 +182,8 @@ impl Bvh {
             return;
         }
         match Slabs32::new(&slab, tmin) {
-            Some(fast) => self.walk(root, &fast, tmin, tmax, prefetch, visit),
-            None => self.walk(root, &slab, tmin, tmax, prefetch, visit),
+            Some(fast) => self.walk(root, &fast, tmin, tmax, prefetch_leaf, visit),
+            None => self.walk(root, &slab, tmin, tmax, prefetch_leaf, visit),
         }
     }
 
@@ -621,7 +621,7 @@ mod tests {
     }
 
     /// `traverse_prefetching` visits what `traverse` visits, in the same order, and before a
-    /// leaf's primitives are visited it has named that leaf's first primitive to `prefetch`
+    /// leaf's primitives are visited it has named that leaf's first primitive to `prefetch_leaf`
     /// (every leaf under an inner root is some node's child), naming only primitives the BVH
     /// holds.
     #[test]
