@@ -350,13 +350,18 @@ impl Product {
     }
 }
 
-/// The roots of both branches at once, as `(s, sign)`, polished: [`Product::cells`] and
+/// The root cells of the whole range into `cells` ([`Product::new`], [`Product::cells`]);
+/// `None` where the product method cannot isolate them.
+fn product_cells(k: &Polys, cells: &mut ArrayVec<RootCell, 16>) -> Option<()> {
+    Product::new(k)?.cells(k, 0.0, 1.0, cells)
+}
+
+/// The roots of both branches at once, as `(s, sign)`, polished: [`product_cells`] and
 /// [`settle_all`]; `None` where the product method cannot certify them.
 #[cfg(test)]
 fn product_roots(k: &Polys) -> Option<ArrayVec<(f64, f64), 16>> {
-    let mut cells = ArrayVec::new();
-    Product::new(k)?.cells(k, 0.0, 1.0, &mut cells)?;
-    let mut out = ArrayVec::new();
+    let (mut cells, mut out) = (ArrayVec::new(), ArrayVec::new());
+    product_cells(k, &mut cells)?;
     settle_all(k, &cells, &mut out)?;
     Some(out)
 }
@@ -466,11 +471,10 @@ fn positive_disc(k: &Polys, s0: f64, s1: f64) -> bool {
     bounds(&k.disc.restrict(s0, s1), k.err_disc).lo > 0.0
 }
 
-/// A range's polynomials kept for [`Deferred`] cells, with the range `[u0, u1]` and `|d|`.
+/// A range's polynomials kept for [`Deferred`] cells, with the range `[u0, u1]`.
 struct DeferredRange {
     k: Polys,
     u: (f64, f64),
-    len: f64,
 }
 
 /// Root cells of the Round method whose polishing waits until a query reaches them, with a
@@ -515,7 +519,7 @@ impl Deferred {
         if settle(&r.k, &cell, &mut roots).is_none() {
             roots = stretch_roots(&r.k, cell.s0, cell.s1);
         }
-        push_all(cyl, d, &r.k, r.u, r.len, &roots, out);
+        push_all(cyl, d, &r.k, r.u, d.length(), &roots, out);
     }
 }
 
@@ -537,12 +541,8 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let r = [r0 + (r1 - r0) * u0, r0 + (r1 - r0) * u1];
     let k = Polys::new(piece.points, r, o, d);
     let len = d.length();
-    let Some(product) = Product::new(&k) else {
-        push_all(cyl, d, &k, (u0, u1), len, &stretch_roots(&k, 0.0, 1.0), out);
-        return;
-    };
     let mut cells = ArrayVec::new();
-    if product.cells(&k, 0.0, 1.0, &mut cells).is_none() {
+    if product_cells(&k, &mut cells).is_none() {
         push_all(cyl, d, &k, (u0, u1), len, &stretch_roots(&k, 0.0, 1.0), out);
         return;
     }
@@ -557,11 +557,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
             let bound = cell.w_bound(&k, r_max, len);
             deferred.cells.push((range, cell, bound));
         }
-        deferred.ranges.push(DeferredRange {
-            k,
-            u: (u0, u1),
-            len,
-        });
+        deferred.ranges.push(DeferredRange { k, u: (u0, u1) });
         return;
     }
     let mut found = ArrayVec::new();
