@@ -942,11 +942,12 @@ impl Bvh {
         let center = DVec3::from_array(std::array::from_fn(|k| {
             0.5 * (fin(b.min[k]) + fin(b.max[k]))
         }));
-        let (nodes, root, depth) = build_clustered(&mut prims, 0, 1, center, cluster_min);
+        let (mut nodes, mut root, depth) = build_clustered(&mut prims, 0, 1, center, cluster_min);
         assert!(
             depth < MAX_DEPTH,
             "BVH depth {depth} exceeds the traversal stack"
         );
+        let indices = inline_singletons(&mut nodes, &mut root, &prims);
         // No shrink_to_fit: the reserve past the written nodes was never touched (it is not
         // resident), and shrinking an over-aligned Vec reallocates and copies the whole array
         // (the allocator's in-place realloc keeps only 16-byte alignment), which would raise
@@ -959,8 +960,31 @@ impl Bvh {
                 max: DVec3::from_array(b.max.map(f64::from)),
             },
             center,
-            indices: prims.iter().map(|p| p.index).collect(),
+            indices,
+            primitives: prims.len(),
             depth,
         }
     }
+}
+
+/// Rewrites the leaf slots of `nodes` and `root` (which name runs of `prims`) as [`Child`]
+/// documents: a leaf of one primitive holds its key, a longer one the start of its run in the
+/// returned key array, which holds only such runs.
+fn inline_singletons(nodes: &mut [Node4], root: &mut Child, prims: &[Prim]) -> Vec<u32> {
+    let mut indices = Vec::new();
+    let mut rewrite = |c: &mut Child| {
+        if c.count == 1 {
+            c.offset = prims[c.offset as usize].index;
+        } else if c.count > 0 && c.count != u32::MAX {
+            let s = c.offset as usize;
+            c.offset = indices.len() as u32;
+            indices.extend(prims[s..s + c.count as usize].iter().map(|p| p.index));
+        }
+    };
+    rewrite(root);
+    for node in nodes {
+        node.child.iter_mut().for_each(&mut rewrite);
+    }
+    indices.shrink_to_fit();
+    indices
 }

@@ -37,7 +37,8 @@ mod build;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C)]
 struct Child {
-    /// Interior: the child node's index. Leaf: index of the first primitive in
+    /// Interior: the child node's index. Leaf of one primitive: its key itself (most leaves:
+    /// the walk then reads no index array). Longer leaf: index of its first key in
     /// `Bvh::indices`.
     offset: u32,
     /// Leaf: number of primitives (1 to [`MAX_LEAF`]). Interior: 0. Empty slot: `u32::MAX`.
@@ -74,7 +75,10 @@ pub struct Bvh {
     /// The point node boxes are stored relative to (the root box's centre), so that their `f32`
     /// bounds keep their precision far from the world's origin.
     center: DVec3,
+    /// The keys of the leaves of two or more primitives, leaf by leaf.
     indices: Vec<u32>,
+    /// Primitive count.
+    primitives: usize,
     depth: usize,
 }
 
@@ -110,6 +114,7 @@ impl Default for Bvh {
             bounds: Aabb::EMPTY,
             center: DVec3::ZERO,
             indices: Vec::new(),
+            primitives: 0,
             depth: 0,
         }
     }
@@ -136,12 +141,23 @@ impl Bvh {
     pub fn stats(&self) -> BvhStats {
         let slots = self.nodes.iter().flat_map(|n| n.child);
         BvhStats {
-            primitives: self.indices.len(),
+            primitives: self.primitives,
             nodes: self.nodes.len(),
             leaves: slots.filter(|c| c.count > 0 && c.count != u32::MAX).count()
                 + usize::from(self.root.is_some_and(|c| c.count > 0)),
             depth: self.depth,
             bytes: self.memory_bytes(),
+        }
+    }
+
+    /// The keys of the leaf in slot `c` (a leaf's slot, `c.count > 0`).
+    #[inline]
+    fn leaf_keys<'a>(&'a self, c: &'a Child) -> &'a [u32] {
+        if c.count == 1 {
+            std::slice::from_ref(&c.offset)
+        } else {
+            let s = c.offset as usize;
+            &self.indices[s..s + c.count as usize]
         }
     }
 
@@ -206,8 +222,7 @@ impl Bvh {
         let mut cur = root;
         loop {
             if cur.count > 0 {
-                let s = cur.offset as usize;
-                for &p in &self.indices[s..s + cur.count as usize] {
+                for &p in self.leaf_keys(&cur) {
                     tmax = visit(p, tmax);
                     if tmax.is_nan() || tmax < tmin {
                         return;
@@ -221,6 +236,8 @@ impl Bvh {
                 for c in &n.child {
                     if c.count == 0 {
                         prefetch(&self.nodes[c.offset as usize]);
+                    } else if c.count == 1 {
+                        prefetch_leaf(c.offset);
                     } else if c.count != u32::MAX {
                         prefetch_leaf(self.indices[c.offset as usize]);
                     }
@@ -643,9 +660,9 @@ mod tests {
         let mut leaf_of = vec![u32::MAX; boxes.len()];
         for c in bvh.nodes.iter().flat_map(|n| n.child) {
             if c.count > 0 && c.count != u32::MAX {
-                let s = c.offset as usize;
-                for &p in &bvh.indices[s..s + c.count as usize] {
-                    leaf_of[p as usize] = bvh.indices[s];
+                let keys = bvh.leaf_keys(&c);
+                for &p in keys {
+                    leaf_of[p as usize] = keys[0];
                 }
             }
         }
@@ -805,7 +822,7 @@ mod tests {
         while let Some((slot, bx, depth)) = todo.pop() {
             assert!(depth <= bvh.depth, "wide depth {depth} past {}", bvh.depth);
             if slot.count > 0 {
-                for &p in &bvh.indices[slot.offset as usize..(slot.offset + slot.count) as usize] {
+                for &p in bvh.leaf_keys(&slot) {
                     seen[p as usize] += 1;
                     if let Some((lo, hi)) = bx {
                         let b = &boxes[p as usize];
