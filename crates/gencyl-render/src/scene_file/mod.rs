@@ -248,12 +248,79 @@ impl SceneDescription {
 
     /// Parses scene source text whose hair files are relative to `base`.
     pub fn parse_in(src: &str, name: &str, base: &Path) -> Result<Self, SceneError> {
+        if src.len() >= SPLIT_MIN
+            && let Some(scene) = parse_split(src, base)
+        {
+            return Ok(scene);
+        }
+        Self::parse_whole(src, name, base)
+    }
+
+    /// [`Self::parse_in`], the whole text at once.
+    fn parse_whole(src: &str, name: &str, base: &Path) -> Result<Self, SceneError> {
         let raw: RawScene = toml::from_str(src).map_err(|e| {
             let span = e.span().unwrap_or(0..0);
             invalid(name, src, span, e.message().trim().to_string())
         })?;
         build(&raw, base).map_err(|(span, msg)| invalid(name, src, span, msg))
     }
+}
+
+/// Texts from this size on are parsed in pieces where they can be ([`parse_split`]).
+const SPLIT_MIN: usize = 1 << 20;
+/// The least size of a piece of [`parse_split`] (the last may be smaller).
+const SPLIT_PIECE: usize = 1 << 18;
+
+/// The file's `[[cylinder]]` tables after the first, as a piece of [`parse_split`] reads
+/// them: nothing else may appear.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CylinderTables {
+    #[serde(default)]
+    cylinder: Vec<Spanned<RawCylinder>>,
+}
+
+/// A long text of `[[cylinder]]` tables (what `gencyl export` writes, or a CT model of many
+/// fibers), parsed in pieces of about [`SPLIT_PIECE`] bytes in parallel, so that only one
+/// piece's parse tree per thread is alive at once (the whole text's tree takes about twenty
+/// times the text's size) and the pieces share the cores.
+///
+/// The text is cut where a line starts with the header `[[cylinder]]`. The part before the
+/// first cut is parsed as a scene, each piece as `[[cylinder]]` tables only. A cut inside a
+/// multi-line string or array leaves that piece unterminated, so every piece parses alone
+/// exactly as it does within the whole. `None` (the caller then parses the whole text) where
+/// that does not settle it: no cut, cylinder tables before the first cut (the whole text
+/// might be invalid TOML by joining them with the later ones, as a static array extended by
+/// headers), any piece that does not parse, and any error in building the scene (its message
+/// needs spans in the whole text).
+fn parse_split(src: &str, base: &Path) -> Option<SceneDescription> {
+    const HEADER: &str = "\n[[cylinder]]";
+    let mut cuts = Vec::new();
+    for (at, _) in src.match_indices(HEADER) {
+        let start = at + 1;
+        // The header alone on its line (TOML allows whitespace or a comment after it).
+        let next = src[start + HEADER.len() - 1..].chars().next();
+        if !next.is_none_or(|c| matches!(c, ' ' | '\t' | '\r' | '\n' | '#')) {
+            continue;
+        }
+        if cuts.last().is_none_or(|&last| start - last >= SPLIT_PIECE) {
+            cuts.push(start);
+        }
+    }
+    let first = *cuts.first()?;
+    let mut raw: RawScene = toml::from_str(&src[..first]).ok()?;
+    if !raw.cylinder.is_empty() {
+        return None;
+    }
+    cuts.push(src.len());
+    let pieces: Vec<Option<CylinderTables>> = cuts
+        .par_windows(2)
+        .map(|w| toml::from_str(&src[w[0]..w[1]]).ok())
+        .collect();
+    for piece in pieces {
+        raw.cylinder.extend(piece?.cylinder);
+    }
+    build(&raw, base).ok()
 }
 
 fn invalid(name: &str, src: &str, span: Range<usize>, message: String) -> SceneError {
