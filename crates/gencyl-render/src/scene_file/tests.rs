@@ -596,3 +596,112 @@ fn exact_hair_sections_are_checked_and_tabulated() {
         Material::Hair(_)
     ));
 }
+
+/// A long text of cylinder tables in many spellings after a preamble: `n` tables.
+fn long_cylinder_text(n: usize, crlf: bool) -> String {
+    let mut s = String::from(
+        "# preamble\n[camera]\nposition = [0, 0, -10]\nlook_at = [0, 0, 0]\n\n\
+         [material.red]\ntype = \"diffuse\"\nalbedo = 0.5\n\n",
+    );
+    for i in 0..n {
+        let x = i as f64 * 0.37;
+        let header = match i % 5 {
+            0 => "[[cylinder]]\n".to_string(),
+            1 => "[[cylinder]]   # a comment\n".to_string(),
+            2 => "[[cylinder]]\t\n".to_string(),
+            // Not cut here (indented): it stays in the piece before.
+            3 => "  [[cylinder]]\n".to_string(),
+            _ => "\n[[cylinder]]\n".to_string(),
+        };
+        s += &header;
+        s += &format!(
+            "bezier = [[{x},0,0],[{},0.2,0],[{},-0.1,0.3],[{},0,0]]\nmajor_radius = [0.05, {}]\n",
+            x + 1.0,
+            x + 2.0,
+            x + 3.0,
+            0.04 + 1e-3 * (i % 7) as f64
+        );
+        match i % 4 {
+            0 => s += "caps = [true, false]\nrotation = [0.1, 0.2]\n",
+            1 => s += "minor_radius = [0.02, 0.03]\nmaterial = \"red\"\n",
+            2 => s += "[cylinder.transform]\ntranslate = [0, 1, 2]\n",
+            _ => s += "caps = false\n",
+        }
+    }
+    if crlf { s.replace('\n', "\r\n") } else { s }
+}
+
+/// Debug text of what a scene holds, to compare two parses bit for bit.
+fn summary(s: &SceneDescription) -> String {
+    format!(
+        "{:?} {:?} {:?} {:?}",
+        s.cylinders, s.cylinder_materials, s.camera, s.materials
+    )
+}
+
+/// Long cylinder files parse in pieces (the fast path is taken) to exactly what the whole
+/// text gives.
+#[test]
+fn long_cylinder_files_parse_in_pieces_as_a_whole() {
+    for crlf in [false, true] {
+        let src = long_cylinder_text(20_000, crlf);
+        assert!(src.len() > 2 * SPLIT_MIN, "long enough: {}", src.len());
+        let whole = SceneDescription::parse_whole(&src, "s.toml", Path::new("")).unwrap();
+        let split = parse_split(&src, Path::new("")).expect("the split parse applies");
+        assert_eq!(split.cylinders.len(), 20_000);
+        assert_eq!(summary(&split), summary(&whole), "crlf {crlf}");
+        let via = SceneDescription::parse(&src, "s.toml").unwrap();
+        assert_eq!(summary(&via), summary(&whole));
+    }
+}
+
+/// Where pieces could mean something else than the whole, or anything is wrong, the split
+/// parse declines, and the whole text's answer (and message) stands.
+#[test]
+fn the_split_parse_declines_what_it_cannot_vouch_for() {
+    let body = long_cylinder_text(12_000, false);
+    let tail_start = body.find("\n[[cylinder]]").unwrap() + 1;
+    let (pre, tail) = body.split_at(tail_start);
+    let cases: Vec<(String, &str)> = vec![
+        // Static array of cylinders extended by headers: not valid TOML.
+        (
+            format!(
+                "{pre}cylinder = [{{bezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]], major_radius = [0.1, 0.1]}}]\n{tail}"
+            ),
+            "invalid",
+        ),
+        // A later table other than cylinders (a second camera): a duplicate in the whole.
+        (
+            format!("{body}\n[camera]\nposition = [1, 1, 1]\n"),
+            "invalid",
+        ),
+        // A cylinder that fails to build, far in.
+        (
+            format!(
+                "{body}[[cylinder]]\nbezier = [[0,0,0],[0,0,0],[0,0,0],[0,0,0]]\nmajor_radius = [0.1, 0.1]\n{body_tail}",
+                body_tail = "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.1, 0.1]\n"
+            ),
+            "invalid",
+        ),
+        // A header line inside a multi-line string: cut there, the piece before is unterminated.
+        (
+            format!(
+                "{pre}[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.1, 0.1]\nmaterial = \"\"\"\n[[cylinder]]\n\"\"\"\n{tail}"
+            ),
+            "invalid",
+        ),
+    ];
+    for (i, (src, _)) in cases.iter().enumerate() {
+        assert!(src.len() > SPLIT_MIN);
+        assert!(
+            parse_split(src, Path::new("")).is_none(),
+            "case {i}: split parse applied"
+        );
+        let whole = SceneDescription::parse_whole(src, "s.toml", Path::new(""));
+        let via = SceneDescription::parse(src, "s.toml");
+        match (whole, via) {
+            (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "case {i}"),
+            (a, b) => panic!("case {i}: whole {:?}, parse {:?}", a.is_ok(), b.is_ok()),
+        }
+    }
+}
