@@ -91,15 +91,36 @@ pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
     l * c.section().bounding_radius()
 }
 
-/// How finely to cut a cylinder into BVH pieces: about one piece per 16 radii of control
-/// polygon length, as a level `l` (`2^l` pieces), at most [`MAX_LEVEL`].
+/// How finely to cut a cylinder into BVH pieces, as a level `l` (`2^l` pieces), at most
+/// [`MAX_LEVEL`]: halve while halving shrinks the pieces' boxes, by their total half surface
+/// area (what the SAH charges a ray for), to at most [`SPLIT_GAIN`] of what it was. A fiber
+/// along a coordinate axis keeps one box (its halves' boxes add up to the same area); a
+/// diagonal or curved one is cut until its boxes hug it.
 pub fn level_for(c: &GeneralizedCylinder) -> u32 {
-    let p = c.axis().points;
-    let length = (0..3).map(|i| (p[i + 1] - p[i]).length()).sum::<f64>();
-    let pieces = length / (16.0 * reach(c));
-    (0..=MAX_LEVEL)
-        .find(|&l| (1u32 << l) as f64 >= pieces)
-        .unwrap_or(MAX_LEVEL)
+    let area = |l: u32| {
+        let mut a = 0.0;
+        pieces_bounds_under(c, Piece::WHOLE, l, &mut |_, b| a += half_area(&b));
+        a
+    };
+    let mut level = 0;
+    let mut a = area(0);
+    while level < MAX_LEVEL {
+        let next = area(level + 1);
+        if !(next <= SPLIT_GAIN * a) {
+            break;
+        }
+        (level, a) = (level + 1, next);
+    }
+    level
+}
+
+/// [`level_for`] halves while the pieces' total box area falls to at most this fraction.
+pub const SPLIT_GAIN: f64 = 0.75;
+
+/// Half the surface area of a box.
+fn half_area(b: &Aabb) -> f64 {
+    let e = (b.max - b.min).max(DVec3::ZERO);
+    e.x * e.y + e.y * e.z + e.z * e.x
 }
 
 /// A tight box of a piece of a cylinder: the piece of the axis curve's exact box (from the
@@ -381,6 +402,39 @@ mod tests {
             rejected_misses > 2000,
             "the cull should reject most far misses: {rejected_misses} of 8000"
         );
+    }
+
+    /// Straight fibers of 100 radii: one along an axis keeps one box (halving it saves no
+    /// area), a diagonal one is cut to the deepest level (each halving nearly halves the
+    /// area), and a stub of two radii keeps one box (the radius fills it).
+    #[test]
+    fn fibers_are_cut_where_cutting_tightens_their_boxes() {
+        let line = |d: DVec3| [0.0, 1.0, 2.0, 3.0].map(|s| d * s);
+        let level = |d: DVec3| {
+            let c = gencyl::FiberSpec::round(line(d), 0.01).build().unwrap();
+            level_for(&c)
+        };
+        assert_eq!(level(DVec3::X / 3.0), 0, "along x");
+        assert_eq!(level(DVec3::Z / 3.0), 0, "along z");
+        assert_eq!(level(DVec3::ONE / 3.0), MAX_LEVEL, "diagonal");
+        assert_eq!(
+            level(DVec3::new(1.0, 1.0, 0.0) / 3.0),
+            MAX_LEVEL,
+            "diagonal in a plane"
+        );
+        assert_eq!(level(DVec3::ONE * 0.02 / 3.0), 0, "stub");
+        // Each accepted halving cut the total area to SPLIT_GAIN of the level before.
+        let c = gencyl::FiberSpec::round(line(DVec3::ONE / 3.0), 0.01)
+            .build()
+            .unwrap();
+        let area = |l: u32| {
+            let mut a = 0.0;
+            pieces_bounds_under(&c, Piece::WHOLE, l, &mut |_, b| a += half_area(&b));
+            a
+        };
+        for l in 0..MAX_LEVEL {
+            assert!(area(l + 1) <= SPLIT_GAIN * area(l), "level {l}");
+        }
     }
 
     #[test]
