@@ -95,21 +95,13 @@ pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
 /// [`MAX_LEVEL`]: halve while halving shrinks the pieces' boxes, by their total half surface
 /// area (what the SAH charges a ray for), to at most [`SPLIT_GAIN`] of what it was. A fiber
 /// along a coordinate axis keeps one box (its halves' boxes add up to the same area); a
-/// diagonal or curved one is cut until its boxes hug it.
+/// diagonal or curved one is cut until its boxes hug it. The boxes judged are those of the
+/// pieces' control points grown by their reach ([`hull_areas`]), cheaper than the exact ones.
 pub fn level_for(c: &GeneralizedCylinder) -> u32 {
-    let area = |l: u32| {
-        let mut a = 0.0;
-        pieces_bounds_under(c, Piece::WHOLE, l, &mut |_, b| a += half_area(&b));
-        a
-    };
+    let areas = hull_areas(c);
     let mut level = 0;
-    let mut a = area(0);
-    while level < MAX_LEVEL {
-        let next = area(level + 1);
-        if !(next <= SPLIT_GAIN * a) {
-            break;
-        }
-        (level, a) = (level + 1, next);
+    while level < MAX_LEVEL && areas[level as usize + 1] <= SPLIT_GAIN * areas[level as usize] {
+        level += 1;
     }
     level
 }
@@ -117,10 +109,28 @@ pub fn level_for(c: &GeneralizedCylinder) -> u32 {
 /// [`level_for`] halves while the pieces' total box area falls to at most this fraction.
 pub const SPLIT_GAIN: f64 = 0.75;
 
-/// Half the surface area of a box.
-fn half_area(b: &Aabb) -> f64 {
-    let e = (b.max - b.min).max(DVec3::ZERO);
-    e.x * e.y + e.y * e.z + e.z * e.x
+/// For each level `l` up to [`MAX_LEVEL`], the total half surface area of the boxes of the
+/// level's pieces' control points, each grown by the piece's reach.
+pub fn hull_areas(c: &GeneralizedCylinder) -> [f64; MAX_LEVEL as usize + 1] {
+    fn down(
+        c: &GeneralizedCylinder,
+        piece: Piece,
+        q: [DVec3; 4],
+        areas: &mut [f64; MAX_LEVEL as usize + 1],
+    ) {
+        let lo = q.iter().fold(DVec3::INFINITY, |m, p| m.min(*p));
+        let hi = q.iter().fold(DVec3::NEG_INFINITY, |m, p| m.max(*p));
+        let e = hi - lo + DVec3::splat(2.0 * reach_on(c, piece));
+        areas[piece.level() as usize] += e.x * e.y + e.y * e.z + e.z * e.x;
+        if piece.level() < MAX_LEVEL {
+            let [a, b] = halves(&q);
+            down(c, Piece(2 * piece.0), a, areas);
+            down(c, Piece(2 * piece.0 + 1), b, areas);
+        }
+    }
+    let mut areas = [0.0; MAX_LEVEL as usize + 1];
+    down(c, Piece::WHOLE, c.axis().points, &mut areas);
+    areas
 }
 
 /// A tight box of a piece of a cylinder: the piece of the axis curve's exact box (from the
@@ -423,17 +433,27 @@ mod tests {
             "diagonal in a plane"
         );
         assert_eq!(level(DVec3::ONE * 0.02 / 3.0), 0, "stub");
-        // Each accepted halving cut the total area to SPLIT_GAIN of the level before.
+        // The areas judged, against the pieces' own (exact) boxes: a diagonal line's control
+        // points lie on it, so its pieces' boxes are theirs; each halving cut the area to
+        // SPLIT_GAIN of the level before.
         let c = gencyl::FiberSpec::round(line(DVec3::ONE / 3.0), 0.01)
             .build()
             .unwrap();
-        let area = |l: u32| {
-            let mut a = 0.0;
-            pieces_bounds_under(&c, Piece::WHOLE, l, &mut |_, b| a += half_area(&b));
-            a
-        };
-        for l in 0..MAX_LEVEL {
-            assert!(area(l + 1) <= SPLIT_GAIN * area(l), "level {l}");
+        let areas = hull_areas(&c);
+        for l in 0..=MAX_LEVEL {
+            let mut exact = 0.0;
+            pieces_bounds_under(&c, Piece::WHOLE, l, &mut |_, b| {
+                let e = b.max - b.min;
+                exact += e.x * e.y + e.y * e.z + e.z * e.x;
+            });
+            let a = areas[l as usize];
+            assert!(
+                (a - exact).abs() <= 1e-9 * exact,
+                "level {l}: {a} vs {exact}"
+            );
+            if l > 0 {
+                assert!(a <= SPLIT_GAIN * areas[l as usize - 1], "level {l}");
+            }
         }
     }
 
