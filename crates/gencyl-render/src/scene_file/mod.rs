@@ -294,12 +294,14 @@ struct CylinderTables {
 /// headers), any piece that does not parse, and any error in building the scene (its message
 /// needs spans in the whole text).
 fn parse_split(src: &str, base: &Path) -> Option<SceneDescription> {
-    const HEADER: &str = "\n[[cylinder]]";
+    const HEADER: &str = "[[cylinder]]";
+    // Where lines start with the header: the text's start, or after a line feed.
+    let at_start = src.starts_with(HEADER).then_some(0);
+    let after_newline = src.match_indices("\n[[cylinder]]").map(|(at, _)| at + 1);
     let mut cuts = Vec::new();
-    for (at, _) in src.match_indices(HEADER) {
-        let start = at + 1;
+    for start in at_start.into_iter().chain(after_newline) {
         // The header alone on its line (TOML allows whitespace or a comment after it).
-        let next = src[start + HEADER.len() - 1..].chars().next();
+        let next = src[start + HEADER.len()..].chars().next();
         if !next.is_none_or(|c| matches!(c, ' ' | '\t' | '\r' | '\n' | '#')) {
             continue;
         }

@@ -653,6 +653,13 @@ fn long_cylinder_files_parse_in_pieces_as_a_whole() {
         let via = SceneDescription::parse(&src, "s.toml").unwrap();
         assert_eq!(summary(&via), summary(&whole));
     }
+    // A file of cylinders alone, from its first byte (as a generator writes it).
+    let src = long_cylinder_text(20_000, false).replace("material = \"red\"\n", "");
+    let src = &src[src.find("[[cylinder]]").unwrap()..];
+    let split = parse_split(src, Path::new("")).expect("the split parse applies");
+    let whole = SceneDescription::parse_whole(src, "s.toml", Path::new("")).unwrap();
+    assert_eq!(split.cylinders.len(), 20_000);
+    assert_eq!(summary(&split), summary(&whole), "cylinders alone");
 }
 
 /// Where pieces could mean something else than the whole, or anything is wrong, the split
