@@ -5,7 +5,7 @@
 //!
 //! Project along the ray onto the plane perpendicular to it, with the ray's origin at `0`:
 //! the ray is the point `0`, and the distance from a point `x` to the ray's line is
-//! `|proj(x)|`. The solid lies within `R` ([`reach`]) of its axis
+//! `|proj(x)|`. The solid lies within `R` ([`reach_on`]) of its axis
 //! curve (side and caps alike), and the curve within the convex hull of its control points,
 //! so a hit `x` near `a(u)` gives `|proj(a(u))| <= |x - a(u)| <= R`: the projected hull comes
 //! within `R` of `0`. If it does not, the ray misses. Likewise along the ray: a hit's depth
@@ -74,16 +74,12 @@ fn halves<T: Copy + Add<Output = T> + Mul<f64, Output = T>>(q: &[T; 4]) -> [[T; 
     [[q[0], m01, a, mid], [mid, b, m23, q[3]]]
 }
 
-/// `R`: the solid lies within this distance of its axis curve, the rule's largest stretch
-/// times the section's `bounding_radius`
-/// (the surface point is `a(u)` plus an offset of at most that length in the normal plane;
-/// caps are sections too).
-pub fn reach(c: &GeneralizedCylinder) -> f64 {
-    reach_on(c, Piece::WHOLE)
-}
-
-/// [`reach`] over a piece of the axis: the rule's stretch is bounded by a linear function of
-/// `u` ([`SweepRule::scale_bound`]), so its larger end value on the piece bounds it there.
+/// `R` over a piece of the axis (the whole axis: [`Piece::WHOLE`]): the solid's part over the
+/// piece lies within this distance of the axis curve there, the rule's largest stretch on the
+/// piece times the section's `bounding_radius` (the surface point is `a(u)` plus an offset of
+/// at most that length in the normal plane; caps are sections too). The rule's stretch is
+/// bounded by a linear function of `u` ([`SweepRule::scale_bound`]), so its larger end value
+/// on the piece bounds it there.
 pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
     let [l0, l1] = c.sweep().scale_bound();
     let (u0, u1) = piece.range();
@@ -134,7 +130,7 @@ pub fn hull_areas(c: &GeneralizedCylinder) -> [f64; MAX_LEVEL as usize + 1] {
 }
 
 /// A tight box of a piece of a cylinder: the piece of the axis curve's exact box (from the
-/// roots of `a'`), grown by [`reach`]. Never looser than the cylinder's own
+/// roots of `a'`), grown by [`reach_on`]. Never looser than the cylinder's own
 /// [`GeneralizedCylinder::bounds`], which grows the control points' box.
 pub fn piece_bounds(c: &GeneralizedCylinder, piece: Piece) -> Aabb {
     bezier_piece_bounds(c, piece, piece.sub_bezier(c.axis().points))
@@ -252,7 +248,7 @@ impl RaySpace {
         self.may_hit_piece(c, Piece::WHOLE, tmin, tmax)
     }
 
-    /// Whether the ray may hit the part of the cylinder within [`reach`] of the axis piece
+    /// Whether the ray may hit the part of the cylinder within [`reach_on`] of the axis piece
     /// with `tmin < t < tmax`: `false` means it surely does not.
     pub fn may_hit_piece(
         &self,

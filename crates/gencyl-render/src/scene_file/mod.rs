@@ -271,8 +271,7 @@ const SPLIT_MIN: usize = 1 << 20;
 /// The least size of a piece of [`parse_split`] (the last may be smaller).
 const SPLIT_PIECE: usize = 1 << 18;
 
-/// The file's `[[cylinder]]` tables after the first, as a piece of [`parse_split`] reads
-/// them: nothing else may appear.
+/// A piece of [`parse_split`]: `[[cylinder]]` tables and nothing else.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CylinderTables {

@@ -236,10 +236,8 @@ impl Bvh {
                 for c in &n.child {
                     if c.count == 0 {
                         prefetch(&self.nodes[c.offset as usize]);
-                    } else if c.count == 1 {
-                        prefetch_leaf(c.offset);
                     } else if c.count != u32::MAX {
-                        prefetch_leaf(self.indices[c.offset as usize]);
+                        prefetch_leaf(self.leaf_keys(c)[0]);
                     }
                 }
                 let (entry, hit) = slab.entries(n, limit);
