@@ -18,8 +18,18 @@ use std::ops::{Add, Mul};
 use gencyl::{Aabb, CrossSection, GeneralizedCylinder, Ray, SweepRule};
 use glam::{DVec2, DVec3};
 
-/// How many times the curve is halved at most, for BVH pieces and the hull test alike.
+/// How many times the hull test halves the curve at most (pieces reach [`MAX_PIECE_LEVEL`]).
 pub const MAX_LEVEL: u32 = 3;
+
+/// How many times [`level_for`] halves a cylinder into BVH pieces at most (a quarter of the
+/// axis). Eighths, as the hull test goes, cost the generated 1.6M-segment model a third of its
+/// BVH build time and a tenth of its memory (fibers falling diagonally from a scalp are cut as
+/// deep as allowed) without measurably faster rays there or on the ponytail.
+pub const MAX_PIECE_LEVEL: u32 = 2;
+const _: () = assert!(
+    MAX_PIECE_LEVEL <= MAX_LEVEL,
+    "pieces within the hull test's levels"
+);
 
 /// A piece of a cylinder's axis, `u in [j / 2^l, (j + 1) / 2^l]`, named by its heap index
 /// `2^l + j` (`1` is the whole axis, `2` and `3` its halves, ...), `l <= MAX_LEVEL`.
@@ -88,7 +98,7 @@ pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
 }
 
 /// How finely to cut a cylinder into BVH pieces, as a level `l` (`2^l` pieces), at most
-/// [`MAX_LEVEL`]: halve while halving shrinks the pieces' boxes, by their total half surface
+/// [`MAX_PIECE_LEVEL`]: halve while halving shrinks the pieces' boxes, by their total half surface
 /// area (what the SAH charges a ray for), to at most [`SPLIT_GAIN`] of what it was. A fiber
 /// along a coordinate axis keeps one box (its halves' boxes add up to the same area); a
 /// diagonal or curved one is cut until its boxes hug it. The boxes judged are those of the
@@ -96,7 +106,8 @@ pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
 pub fn level_for(c: &GeneralizedCylinder) -> u32 {
     let areas = hull_areas(c);
     let mut level = 0;
-    while level < MAX_LEVEL && areas[level as usize + 1] <= SPLIT_GAIN * areas[level as usize] {
+    while level < MAX_PIECE_LEVEL && areas[level as usize + 1] <= SPLIT_GAIN * areas[level as usize]
+    {
         level += 1;
     }
     level
@@ -105,26 +116,26 @@ pub fn level_for(c: &GeneralizedCylinder) -> u32 {
 /// [`level_for`] halves while the pieces' total box area falls to at most this fraction.
 pub const SPLIT_GAIN: f64 = 0.75;
 
-/// For each level `l` up to [`MAX_LEVEL`], the total half surface area of the boxes of the
+/// For each level `l` up to [`MAX_PIECE_LEVEL`], the total half surface area of the boxes of the
 /// level's pieces' control points, each grown by the piece's reach.
-pub fn hull_areas(c: &GeneralizedCylinder) -> [f64; MAX_LEVEL as usize + 1] {
+pub fn hull_areas(c: &GeneralizedCylinder) -> [f64; MAX_PIECE_LEVEL as usize + 1] {
     fn down(
         c: &GeneralizedCylinder,
         piece: Piece,
         q: [DVec3; 4],
-        areas: &mut [f64; MAX_LEVEL as usize + 1],
+        areas: &mut [f64; MAX_PIECE_LEVEL as usize + 1],
     ) {
         let lo = q.iter().fold(DVec3::INFINITY, |m, p| m.min(*p));
         let hi = q.iter().fold(DVec3::NEG_INFINITY, |m, p| m.max(*p));
         let e = hi - lo + DVec3::splat(2.0 * reach_on(c, piece));
         areas[piece.level() as usize] += e.x * e.y + e.y * e.z + e.z * e.x;
-        if piece.level() < MAX_LEVEL {
+        if piece.level() < MAX_PIECE_LEVEL {
             let [a, b] = halves(&q);
             down(c, Piece(2 * piece.0), a, areas);
             down(c, Piece(2 * piece.0 + 1), b, areas);
         }
     }
-    let mut areas = [0.0; MAX_LEVEL as usize + 1];
+    let mut areas = [0.0; MAX_PIECE_LEVEL as usize + 1];
     down(c, Piece::WHOLE, c.axis().points, &mut areas);
     areas
 }
@@ -422,10 +433,10 @@ mod tests {
         };
         assert_eq!(level(DVec3::X / 3.0), 0, "along x");
         assert_eq!(level(DVec3::Z / 3.0), 0, "along z");
-        assert_eq!(level(DVec3::ONE / 3.0), MAX_LEVEL, "diagonal");
+        assert_eq!(level(DVec3::ONE / 3.0), MAX_PIECE_LEVEL, "diagonal");
         assert_eq!(
             level(DVec3::new(1.0, 1.0, 0.0) / 3.0),
-            MAX_LEVEL,
+            MAX_PIECE_LEVEL,
             "diagonal in a plane"
         );
         assert_eq!(level(DVec3::ONE * 0.02 / 3.0), 0, "stub");
@@ -436,7 +447,7 @@ mod tests {
             .build()
             .unwrap();
         let areas = hull_areas(&c);
-        for l in 0..=MAX_LEVEL {
+        for l in 0..=MAX_PIECE_LEVEL {
             let mut exact = 0.0;
             pieces_bounds_under(&c, Piece::WHOLE, l, &mut |_, b| {
                 let e = b.max - b.min;

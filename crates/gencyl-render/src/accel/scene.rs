@@ -40,7 +40,7 @@ pub struct Scratch {
 /// BVH keys: cylinder number in the high bits, the piece's heap index (< 16) in the low 4.
 const PIECE_BITS: u32 = 4;
 const _: () = assert!(
-    2 << crate::accel::cull::MAX_LEVEL <= 1 << PIECE_BITS,
+    2 << crate::accel::cull::MAX_PIECE_LEVEL <= 1 << PIECE_BITS,
     "piece index fits its bits"
 );
 
