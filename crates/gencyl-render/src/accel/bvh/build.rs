@@ -791,26 +791,38 @@ fn build_clustered(
                 }
             })
             .collect();
-        for (sub, root, d) in subtrees {
-            let base = nodes.len() as u32;
-            deepest = deepest.max(d);
+        // Each subtree's place in the final array; its nodes are copied there in parallel
+        // (with their inner slots moved by that base), so that the copy and the first touches
+        // of the array's fresh memory are shared between the threads.
+        let first = nodes.len();
+        // Where each subtree starts, counted from `first`.
+        let mut starts = Vec::with_capacity(subtrees.len());
+        let mut count = 0;
+        for (sub, root, d) in &subtrees {
+            let base = (first + count) as u32;
+            starts.push(count);
+            count += sub.len();
+            deepest = deepest.max(*d);
             roots.push(if root.count == 0 {
                 Child {
                     offset: root.offset + base,
                     count: 0,
                 }
             } else {
-                root
+                *root
             });
-            nodes.extend(sub.into_iter().map(|mut node| {
-                for c in &mut node.child {
-                    if c.count == 0 {
-                        c.offset += base;
-                    }
-                }
-                node
-            }));
         }
+        nodes.par_extend((0..count).into_par_iter().map(|i| {
+            let s = starts.partition_point(|&b| b <= i) - 1;
+            let b = starts[s];
+            let mut node = subtrees[s].0[i - b];
+            for c in &mut node.child {
+                if c.count == 0 {
+                    c.offset += (first + b) as u32;
+                }
+            }
+            node
+        }));
     }
     let slot = |c: Child| {
         if c.count == CLUSTER_SLOT {

@@ -928,6 +928,35 @@ mod tests {
         }
     }
 
+    /// A clustered build of hundreds of clusters (several batches of them, each copied into
+    /// the node array in parallel), among them clusters of one primitive (no nodes of their
+    /// own): a dense cloud in one corner of the centres' box and a few boxes scattered over
+    /// the rest, each alone in its grid cell.
+    #[test]
+    fn clustered_build_of_many_batches_is_sound() {
+        let mut rng = Rng::from_seed(17);
+        let mut boxes: Vec<Aabb> = (0..150_000)
+            .map(|_| {
+                let c = rng.in_box(DVec3::ZERO, DVec3::splat(0.5));
+                let r = DVec3::splat(rng.range(1e-4, 1e-2));
+                Aabb {
+                    min: c - r,
+                    max: c + r,
+                }
+            })
+            .collect();
+        for k in 0..12 {
+            let c = DVec3::new(0.55 + 0.04 * k as f64, 0.95 - 0.07 * k as f64, 1.0);
+            boxes.push(Aabb {
+                min: c - 1e-3,
+                max: c + 1e-3,
+            });
+        }
+        let bvh = Bvh::build_clustered_from(&boxes, CLUSTER_MIN);
+        check_structure(&bvh, &boxes);
+        assert_eq!(bvh.stats().primitives, boxes.len());
+    }
+
     /// The hits of every cylinder, brute force.
     fn brute_all(scene: &Scene, ray: &Ray, tmin: f64) -> Vec<SceneHit> {
         let mut out = vec![];
