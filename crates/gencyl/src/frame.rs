@@ -341,19 +341,58 @@ fn clearly_curved(axis: &CubicBezier, lo: f64, hi: f64) -> bool {
 /// is then bisected on `frenet_shift` itself, so it is where the `f64` evaluation switches, to
 /// the last bit. (A stretch that only touches the tolerance, a double root, may be missed; the
 /// frame then moves by at most `1e-7` in `u` there, continuously up to the tolerance.)
+///
+/// A strand's end segments have `a'' = 0` at the strand's root or tip (their reflected end
+/// point), so a stretch of about `1e-9` there that [`clearly_curved`] cannot clear on the whole
+/// range: where it clears all but a short stretch ([`END_STRETCHES`]) at one end or both, only those ends are
+/// isolated (the same switches: none lies where the certificate holds, and each is found by
+/// bisecting the shift near it), which saves the isolation's descent through the rest.
 pub(crate) fn frenet_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<f64, 8> {
     if clearly_curved(axis, lo, hi) {
         return ArrayVec::new();
     }
+    for end in END_STRETCHES {
+        let (a, b) = (lo + end, hi - end);
+        if !(a < b) {
+            break;
+        }
+        if clearly_curved(axis, a, hi) {
+            return isolated_switches(axis, lo, a);
+        }
+        if clearly_curved(axis, lo, b) {
+            return isolated_switches(axis, b, hi);
+        }
+        if clearly_curved(axis, a, b) {
+            let mut out = isolated_switches(axis, lo, a);
+            for u in isolated_switches(axis, b, hi) {
+                if out.try_push(u).is_err() {
+                    break;
+                }
+            }
+            return out;
+        }
+    }
     isolated_switches(axis, lo, hi)
 }
 
+/// How much of the range at an end [`frenet_switches`] tries to isolate alone, shortest first (a
+/// strand end's degenerate stretch is about `1e-9` long, and the rest of the range clears the
+/// certificate's margin from about `1e-5` on for most axes; the isolation's cost grows with the
+/// logarithm of the length).
+const END_STRETCHES: [f64; 2] = [1.0 / 65536.0, 1.0 / 256.0];
+
 /// [`frenet_switches`] by root isolation, without [`clearly_curved`]'s shortcut.
+///
+/// [`Degenerate`] is homogeneous (of degree 4) in the axis' size, so it is isolated on the axis
+/// scaled to about unit size by a power of two: the same roots, the same arithmetic to the bit
+/// for any axis whose squares neither underflow nor overflow, and those are then avoided too
+/// (an axis `1e-80` across would square its derivatives' cross product to 0 everywhere).
 fn isolated_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<f64, 8> {
     let mut out = ArrayVec::new();
-    let m = axis.d2(0.0).length().max(axis.d2(1.0).length());
+    let unit = unit_scaled(axis);
+    let m = unit.d2(0.0).length().max(unit.d2(1.0).length());
     let f = Degenerate {
-        axis,
+        axis: &unit,
         tol2: (FRENET_DEGENERATE * m).powi(2),
     };
     let opts = IsolateOptions {
@@ -424,6 +463,23 @@ fn isolated_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<f64, 8> {
         }
     }
     out
+}
+
+/// `axis` scaled by the power of two nearest `1 / max |coordinate|` (exactly, as a power of two
+/// scales), or as it is if its coordinates are all 0 or not finite.
+fn unit_scaled(axis: &CubicBezier) -> CubicBezier {
+    let extent = axis
+        .points
+        .iter()
+        .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
+    if !(extent > 0.0 && extent.is_finite()) {
+        return *axis;
+    }
+    // In two factors, each a normal power of two, for extents near the ends of the range.
+    let e = -(extent.log2().round() as i32);
+    let (e1, e2) = (e / 2, e - e / 2);
+    let (s1, s2) = (2f64.powi(e1), 2f64.powi(e2));
+    CubicBezier::new(axis.points.map(|p| p * s1 * s2))
 }
 
 /// The projection frame ([`Framing::Projected`]) from `a'` (any positive multiple of it) and the
@@ -901,6 +957,82 @@ mod tests {
         assert!(
             s_left > 200,
             "S-curves bent 1e-12 to 1e-1 should not all pass: {s_left}"
+        );
+    }
+
+    /// Isolating only a strand's end, where the rest of the axis is certified clear, finds the
+    /// switches of the whole range, to the bit; each is where the shift changes, and the shift
+    /// is constant between them at samples spaced log-uniformly from 1e-2 down to 1e-15 from
+    /// either end (the middle is clear by the certificate). Axes with `a'' = 0` at the root or
+    /// at the tip (a cubic with both is straight), curved at random or S-shaped with an
+    /// inflection inside, at scales 1e-120 to 1e120 (before the isolation scaled the axis, its
+    /// squares underflowed at 1e-80 and it found switches everywhere or nowhere).
+    #[test]
+    fn strand_ends_alone_give_the_switches() {
+        let mut rng = crate::test_rng::Lcg(29);
+        let (lo, hi) = (-1e-11, 1.0 + 1e-11);
+        let (mut shortcut, mut with_switches) = (0, 0);
+        for case in 0..2000 {
+            let scale = 10f64.powf(rng.range(-120.0, 120.0));
+            let mut p: [DVec3; 4] = std::array::from_fn(|j| {
+                DVec3::new(j as f64, rng.range(-1.0, 1.0), rng.range(-1.0, 1.0))
+            });
+            if case % 5 == 4 {
+                // An S in the xy plane bent out of it, its inflection anywhere inside.
+                let (a, b) = (rng.range(0.2, 2.0), rng.range(0.2, 2.0));
+                p = [
+                    DVec3::ZERO,
+                    DVec3::new(1.0, a, 0.0),
+                    DVec3::new(2.0, -b, 10f64.powf(rng.range(-12.0, -1.0))),
+                    DVec3::new(3.0, 0.0, 0.0),
+                ];
+            }
+            if case % 2 == 0 {
+                p[2] = 2.0 * p[1] - p[0];
+            } else {
+                p[1] = 2.0 * p[2] - p[3];
+            }
+            let axis = CubicBezier::new(p.map(|x| x * scale));
+            let e = END_STRETCHES[0];
+            if clearly_curved(&axis, lo, hi)
+                || !(clearly_curved(&axis, lo + e, hi) || clearly_curved(&axis, lo, hi - e))
+            {
+                continue;
+            }
+            shortcut += 1;
+            let found = frenet_switches(&axis, lo, hi);
+            assert_eq!(
+                found,
+                isolated_switches(&axis, lo, hi),
+                "case {case}: the ends alone against the whole range, {p:?} x {scale:e}"
+            );
+            with_switches += usize::from(!found.is_empty());
+            let shift = |u: f64| frenet_shift(&axis, u);
+            for &u in &found {
+                assert_ne!(
+                    shift(u.next_down()),
+                    shift(u),
+                    "case {case}: no switch at {u}"
+                );
+            }
+            let mut samples: Vec<f64> = (0..=650)
+                .map(|i| 10f64.powf(-2.0 - 13.0 * i as f64 / 650.0))
+                .flat_map(|x| [lo + x, hi - x])
+                .collect();
+            samples.sort_by(f64::total_cmp);
+            for w in samples.windows(2) {
+                assert!(
+                    shift(w[0]) == shift(w[1]) || found.iter().any(|&u| w[0] < u && u <= w[1]),
+                    "case {case}: the shift changes between {} and {}, switches {found:?}",
+                    w[0],
+                    w[1]
+                );
+            }
+        }
+        assert!(shortcut > 1500, "the shortcut should be taken: {shortcut}");
+        assert!(
+            with_switches > 1500,
+            "strand ends have switches: {with_switches}"
         );
     }
 
