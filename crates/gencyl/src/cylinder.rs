@@ -305,7 +305,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     "a fixed frame needs a straight axis (the normal planes turn along a curved one)"
                         .into(),
                 ),
-                Framing::Fixed(f) => {
+                Framing::Fixed(ref f) => {
                     let chord = (local.points[3] - local.points[0]).normalize();
                     let err = [
                         (f.t - chord).length(),
@@ -522,11 +522,18 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         self.bounds
     }
 
-    /// Heap bytes of the frame's switch list (none for most axes).
-    pub fn switch_bytes(&self) -> usize {
-        self.switches
-            .as_ref()
-            .map_or(0, |s| size_of_val(s.as_ref()))
+    /// Heap bytes of the cylinder's own (the frame's switch list, a fixed frame; none for most
+    /// cylinders; a section's profile is shared and not counted).
+    pub fn heap_bytes(&self) -> usize {
+        let frame = match &self.framing {
+            Framing::Fixed(f) => size_of_val(f.as_ref()),
+            _ => 0,
+        };
+        frame
+            + self
+                .switches
+                .as_ref()
+                .map_or(0, |s| size_of_val(s.as_ref()))
     }
 
     /// The parameters in `(a, b)` where the frame may jump, ascending.
@@ -928,9 +935,26 @@ mod tests {
 
     /// The struct's size is most of a hair model's memory: a layout change shows here.
     #[test]
-    fn cylinder_is_320_bytes() {
+    fn cylinder_is_272_bytes() {
         assert_eq!(size_of::<Section>(), 8, "a profile is one shared pointer");
-        assert_eq!(size_of::<GeneralizedCylinder>(), 320, "cylinder layout");
+        assert_eq!(size_of::<Framing>(), 32, "a fixed frame is boxed");
+        assert_eq!(size_of::<GeneralizedCylinder>(), 272, "cylinder layout");
+    }
+
+    /// A straight axis' fixed frame lives on the heap and is counted there.
+    #[test]
+    fn heap_bytes_count_a_fixed_frame() {
+        let line = CubicBezier::new([0.0, 1.0, 2.0, 3.0].map(|x| DVec3::new(x, 0.0, 0.0)));
+        let c = GeneralizedCylinder::new(line, Section::default(), sweep(), true, None).unwrap();
+        assert!(matches!(c.framing(), Framing::Fixed(_)), "straight: fixed");
+        assert_eq!(c.heap_bytes(), size_of::<Frame>());
+        let c =
+            GeneralizedCylinder::new(curved(), Section::default(), sweep(), true, None).unwrap();
+        assert_eq!(
+            c.heap_bytes(),
+            0,
+            "a curved axis without switches holds nothing"
+        );
     }
     use crate::section::BezierLoop;
 
@@ -995,7 +1019,10 @@ mod tests {
             "Frenet on a straight axis",
         );
         let fixed = Framing::for_axis(&straight, None).unwrap();
-        assert!(build(straight, fixed).is_ok(), "the default fixed frame");
+        assert!(
+            build(straight, fixed.clone()).is_ok(),
+            "the default fixed frame"
+        );
         bad(build(curved(), fixed), "a fixed frame on a curved axis");
         let tilted = Frame {
             t: DVec3::Y,
@@ -1003,7 +1030,7 @@ mod tests {
             b: DVec3::X,
         };
         bad(
-            build(straight, Framing::Fixed(tilted)),
+            build(straight, Framing::Fixed(Box::new(tilted))),
             "a fixed frame across the chord",
         );
         let along = curved().d1(0.3).normalize();
@@ -1064,11 +1091,11 @@ mod tests {
                     DVec3::new(0.7, 0.0, 0.0),
                     DVec3::new(1.0, 0.0, 0.0),
                 ]),
-                Framing::Fixed(Frame {
+                Framing::Fixed(Box::new(Frame {
                     t: DVec3::X,
                     n: DVec3::Y,
                     b: DVec3::Z,
-                }),
+                })),
             ),
             (
                 "projected-straightish",

@@ -33,12 +33,14 @@ pub struct Frame {
 }
 
 /// How a segment's frame is defined.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Framing {
     /// The Frenet frame of the curve.
     Frenet,
-    /// A constant frame (a straight segment, whose Frenet frame is undefined).
-    Fixed(Frame),
+    /// A constant frame (a straight segment, whose Frenet frame is undefined). Boxed: straight
+    /// segments are rare in hair, and inline the frame would make every cylinder 48 bytes
+    /// larger.
+    Fixed(Box<Frame>),
     /// The projection frame of the reference direction `r`: `n` is `r` made normal to the
     /// tangent, `n = (r - (r.t) t) / |r - (r.t) t|`, and `b = t x n`. Equivalently
     /// `b = (a' x r) / |a' x r|`, `n = b x t`: Frenet's formula with `a''` replaced by the
@@ -95,11 +97,11 @@ impl Framing {
             return None;
         }
         let n = perp.normalize();
-        Some(Framing::Fixed(Frame {
+        Some(Framing::Fixed(Box::new(Frame {
             t,
             n,
             b: t.cross(n),
-        }))
+        })))
     }
 
     /// A lower bound of `min_u |r x t(u)| / |r|` over `u in [0, 1]`, the sine of the smallest

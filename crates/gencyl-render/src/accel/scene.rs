@@ -94,7 +94,7 @@ impl Scene {
                         Section::Loop(l) if profiles.insert(l.storage_id()) => l.storage_bytes(),
                         _ => 0,
                     };
-                    section + c.switch_bytes()
+                    section + c.heap_bytes()
                 })
                 .sum::<usize>();
         cyl + self.bvh.memory_bytes()

@@ -486,7 +486,7 @@ fn strand_frame_key_chooses_the_framing() {
             .unwrap()
             .cylinders
             .iter()
-            .map(|c| *c.framing())
+            .map(|c| c.framing().clone())
             .collect()
     };
     let projected = |f: &[gencyl::Framing]| {
