@@ -735,7 +735,7 @@ fn build_clustered(
         p.code = spread(cell(p, 0)) << 2 | spread(cell(p, 1)) << 1 | spread(cell(p, 2));
     });
     // By key too, so that a cluster's order (and its tree) is fixed by the keys.
-    prims.par_sort_unstable_by_key(|p| (p.code, p.index));
+    prims.par_sort_unstable_by_key(|p| u64::from(p.code) << 32 | u64::from(p.index));
     let mut starts = vec![0];
     starts.extend((1..n).filter(|&i| prims[i].code != prims[i - 1].code));
     starts.push(n);
