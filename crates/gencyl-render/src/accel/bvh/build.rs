@@ -16,6 +16,7 @@ use arrayvec::ArrayVec;
 use gencyl::Aabb;
 use glam::DVec3;
 use rayon::prelude::*;
+use wide::f32x4;
 
 use super::{BINS, Bvh, Child, MAX_DEPTH, MAX_LEAF, Node4};
 
@@ -49,6 +50,7 @@ pub(super) fn up(x: f64) -> f32 {
 /// A primitive during the build: its box (rounded outward), its box's centre, its key, and
 /// its cluster's Morton code ([`cluster_bits`]; 0 until the clusters are formed). 44 bytes.
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 struct Prim {
     min: [f32; 3],
     max: [f32; 3],
@@ -90,6 +92,20 @@ impl Prim {
     fn centroid(&self, k: usize) -> f64 {
         self.center[k] as f64
     }
+
+    /// The box's corners and centre as lanes `x, y, z` and a fourth that nothing reads
+    /// (the next field, so that each is one load).
+    #[inline]
+    fn lanes(&self) -> [f32x4; 3] {
+        let [a, b, c] = self.min;
+        let [d, e, f] = self.max;
+        let [g, h, i] = self.center;
+        [
+            f32x4::new([a, b, c, d]),
+            f32x4::new([d, e, f, g]),
+            f32x4::new([g, h, i, 0.0]),
+        ]
+    }
 }
 
 /// The lesser of two bounds (one `minss`: bounds are never NaN, so `f32::min`'s NaN handling
@@ -105,42 +121,63 @@ fn greater(a: f32, b: f32) -> f32 {
     if b > a { b } else { a }
 }
 
-/// A box during the build (in `f32`, as stored).
+/// A box during the build (in `f32`, as stored), in lanes `x, y, z` (a fourth lane is
+/// carried along and never read): one `minps` and one `maxps` grow it.
 #[derive(Clone, Copy, Debug)]
 struct Bounds {
-    min: [f32; 3],
-    max: [f32; 3],
+    min: f32x4,
+    max: f32x4,
 }
 
 impl Bounds {
     const EMPTY: Bounds = Bounds {
-        min: [f32::INFINITY; 3],
-        max: [f32::NEG_INFINITY; 3],
+        min: f32x4::new([f32::INFINITY; 4]),
+        max: f32x4::new([f32::NEG_INFINITY; 4]),
     };
 
+    /// The box from its corners' lanes.
     #[inline]
-    fn grow(&mut self, p: &Prim) {
-        for k in 0..3 {
-            self.min[k] = lesser(self.min[k], p.min[k]);
-            self.max[k] = greater(self.max[k], p.max[k]);
-        }
+    fn of(min: f32x4, max: f32x4) -> Bounds {
+        Bounds { min, max }
     }
 
     #[inline]
-    fn union(mut self, o: &Bounds) -> Bounds {
-        for k in 0..3 {
-            self.min[k] = lesser(self.min[k], o.min[k]);
-            self.max[k] = greater(self.max[k], o.max[k]);
+    fn grow(&mut self, p: &Prim) {
+        let [lo, hi, _] = p.lanes();
+        *self = self.union(&Bounds::of(lo, hi));
+    }
+
+    /// The smallest box holding both (bounds are never NaN, so the lanes' `minps` and `maxps`
+    /// need no NaN handling).
+    #[inline]
+    fn union(self, o: &Bounds) -> Bounds {
+        Bounds {
+            min: self.min.fast_min(o.min),
+            max: self.max.fast_max(o.max),
         }
-        self
+    }
+
+    /// The lower corner, `x, y, z`.
+    #[inline]
+    fn lo(&self) -> [f32; 3] {
+        let [x, y, z, _] = self.min.to_array();
+        [x, y, z]
+    }
+
+    /// The upper corner, `x, y, z`.
+    #[inline]
+    fn hi(&self) -> [f32; 3] {
+        let [x, y, z, _] = self.max.to_array();
+        [x, y, z]
     }
 
     /// Half the surface area (0 for an empty box).
     fn half_area(&self) -> f64 {
-        if self.min[0] > self.max[0] {
+        let (lo, hi) = (self.lo(), self.hi());
+        if lo[0] > hi[0] {
             return 0.0;
         }
-        let e: [f64; 3] = std::array::from_fn(|k| fin(self.max[k]) - fin(self.min[k]));
+        let e: [f64; 3] = std::array::from_fn(|k| fin(hi[k]) - fin(lo[k]));
         e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
     }
 }
@@ -160,11 +197,9 @@ impl Measure {
 
     #[inline]
     fn add(&mut self, p: &Prim) {
-        self.bounds.grow(p);
-        for k in 0..3 {
-            self.centers.min[k] = lesser(self.centers.min[k], p.center[k]);
-            self.centers.max[k] = greater(self.centers.max[k], p.center[k]);
-        }
+        let [lo, hi, mid] = p.lanes();
+        self.bounds = self.bounds.union(&Bounds::of(lo, hi));
+        self.centers = self.centers.union(&Bounds::of(mid, mid));
     }
 
     fn union(self, o: &Measure) -> Measure {
@@ -177,8 +212,8 @@ impl Measure {
     /// The centres' box in `f64`.
     fn center_range(&self) -> (DVec3, DVec3) {
         (
-            DVec3::from_array(self.centers.min.map(f64::from)),
-            DVec3::from_array(self.centers.max.map(f64::from)),
+            DVec3::from_array(self.centers.lo().map(f64::from)),
+            DVec3::from_array(self.centers.hi().map(f64::from)),
         )
     }
 }
@@ -545,9 +580,10 @@ fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -
     });
     for (i, &kid) in kids.iter().enumerate() {
         let b = arena[kid as usize].bounds;
+        let (lo, hi) = (b.lo(), b.hi());
         for k in 0..3 {
-            out[me].min[k][i] = relative_down(b.min[k], center[k]);
-            out[me].max[k][i] = relative_up(b.max[k], center[k]);
+            out[me].min[k][i] = relative_down(lo[k], center[k]);
+            out[me].max[k][i] = relative_up(hi[k], center[k]);
         }
         out[me].child[i] = collapse(arena, kid, center, out);
     }
@@ -755,7 +791,7 @@ fn build_clustered(
                 id: id as u32,
                 count: w[1] - w[0],
                 bounds,
-                center: std::array::from_fn(|k| 0.5 * (fin(bounds.min[k]) + fin(bounds.max[k]))),
+                center: std::array::from_fn(|k| 0.5 * (fin(bounds.lo()[k]) + fin(bounds.hi()[k]))),
             }
         })
         .collect();
@@ -952,7 +988,7 @@ impl Bvh {
             })
             .reduce(|| Bounds::EMPTY, |a, b| a.union(&b));
         let center = DVec3::from_array(std::array::from_fn(|k| {
-            0.5 * (fin(b.min[k]) + fin(b.max[k]))
+            0.5 * (fin(b.lo()[k]) + fin(b.hi()[k]))
         }));
         let (mut nodes, mut root, depth) = build_clustered(&mut prims, 0, 1, center, cluster_min);
         assert!(
@@ -968,8 +1004,8 @@ impl Bvh {
             nodes,
             root: Some(root),
             bounds: Aabb {
-                min: DVec3::from_array(b.min.map(f64::from)),
-                max: DVec3::from_array(b.max.map(f64::from)),
+                min: DVec3::from_array(b.lo().map(f64::from)),
+                max: DVec3::from_array(b.hi().map(f64::from)),
             },
             center,
             indices,
