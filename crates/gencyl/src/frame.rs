@@ -346,9 +346,10 @@ fn clearly_curved(axis: &CubicBezier, lo: f64, hi: f64) -> bool {
 ///
 /// A strand's end segments have `a'' = 0` at the strand's root or tip (their reflected end
 /// point), so a stretch of about `1e-9` there that [`clearly_curved`] cannot clear on the whole
-/// range: where it clears all but a short stretch ([`END_STRETCHES`]) at one end or both, only those ends are
-/// isolated (the same switches: none lies where the certificate holds, and each is found by
-/// bisecting the shift near it), which saves the isolation's descent through the rest.
+/// range: where it clears all but a short stretch ([`END_STRETCHES`]) at one end or both, only
+/// those ends are isolated (the same switches: none lies where the certificate holds, and each
+/// is found by bisecting the shift near it), which saves the isolation's descent through the
+/// rest.
 pub(crate) fn frenet_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<f64, 8> {
     if clearly_curved(axis, lo, hi) {
         return ArrayVec::new();
@@ -386,9 +387,9 @@ const END_STRETCHES: [f64; 2] = [1.0 / 65536.0, 1.0 / 256.0];
 /// [`frenet_switches`] by root isolation, without [`clearly_curved`]'s shortcut.
 ///
 /// [`Degenerate`] is homogeneous (of degree 4) in the axis' size, so it is isolated on the axis
-/// scaled to about unit size by a power of two: the same roots, the same arithmetic to the bit
-/// for any axis whose squares neither underflow nor overflow, and those are then avoided too
-/// (an axis `1e-80` across would square its derivatives' cross product to 0 everywhere).
+/// scaled to about unit size by a power of two: the same roots, and no square that underflows
+/// or overflows (an axis `1e-80` across squared its derivatives' cross product to 0 everywhere).
+/// The switches themselves are bisected on [`frenet_shift`] of the axis as given.
 fn isolated_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<f64, 8> {
     let mut out = ArrayVec::new();
     let unit = unit_scaled(axis);
