@@ -885,6 +885,24 @@ mod tests {
         assert!(sw[0] > 0.0 && sw[0] < 1e-6, "{sw:?}");
     }
 
+    /// Control points at `x = 0, 1, 2, 3` with `y` and `z` uniform in `[-1, 1]`: a random
+    /// curved axis.
+    fn random_points(rng: &mut crate::test_rng::Lcg) -> [DVec3; 4] {
+        std::array::from_fn(|j| DVec3::new(j as f64, rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)))
+    }
+
+    /// An S in the xy plane, its inflection anywhere inside, bent out of the plane by 1e-12 to
+    /// 1e-1.
+    fn bent_s(rng: &mut crate::test_rng::Lcg) -> [DVec3; 4] {
+        let (a, b) = (rng.range(0.2, 2.0), rng.range(0.2, 2.0));
+        [
+            DVec3::ZERO,
+            DVec3::new(1.0, a, 0.0),
+            DVec3::new(2.0, -b, 10f64.powf(rng.range(-12.0, -1.0))),
+            DVec3::new(3.0, 0.0, 0.0),
+        ]
+    }
+
     /// [`clearly_curved`]'s certificate holds only where the frame has no switch: wherever it
     /// passes, [`Degenerate`] is positive at 4001 samples (in `f64`, of the unscaled axis) and
     /// the isolation finds no switch; it passes for most curved axes, and leaves to the
@@ -898,21 +916,10 @@ mod tests {
         let (mut passed, mut random, mut s_left) = (0, 0, 0);
         for case in 0..3000 {
             let scale = 10f64.powf(rng.range(-120.0, 120.0));
-            let mut p: [DVec3; 4] = std::array::from_fn(|j| {
-                DVec3::new(j as f64, rng.range(-1.0, 1.0), rng.range(-1.0, 1.0))
-            });
+            let mut p = random_points(&mut rng);
             let kind = case % 4;
             match kind {
-                // An S in the xy plane, its inflection anywhere, bent out of plane a little.
-                1 => {
-                    let (a, b) = (rng.range(0.2, 2.0), rng.range(0.2, 2.0));
-                    p = [
-                        DVec3::ZERO,
-                        DVec3::new(1.0, a, 0.0),
-                        DVec3::new(2.0, -b, 10f64.powf(rng.range(-12.0, -1.0))),
-                        DVec3::new(3.0, 0.0, 0.0),
-                    ];
-                }
+                1 => p = bent_s(&mut rng),
                 // A strand end: a'' = 0 at u = 0.
                 2 => p[2] = 2.0 * p[1] - p[0],
                 // Nearly straight.
@@ -977,18 +984,9 @@ mod tests {
         let (mut shortcut, mut with_switches) = (0, 0);
         for case in 0..2000 {
             let scale = 10f64.powf(rng.range(-120.0, 120.0));
-            let mut p: [DVec3; 4] = std::array::from_fn(|j| {
-                DVec3::new(j as f64, rng.range(-1.0, 1.0), rng.range(-1.0, 1.0))
-            });
+            let mut p = random_points(&mut rng);
             if case % 5 == 4 {
-                // An S in the xy plane bent out of it, its inflection anywhere inside.
-                let (a, b) = (rng.range(0.2, 2.0), rng.range(0.2, 2.0));
-                p = [
-                    DVec3::ZERO,
-                    DVec3::new(1.0, a, 0.0),
-                    DVec3::new(2.0, -b, 10f64.powf(rng.range(-12.0, -1.0))),
-                    DVec3::new(3.0, 0.0, 0.0),
-                ];
+                p = bent_s(&mut rng);
             }
             if case % 2 == 0 {
                 p[2] = 2.0 * p[1] - p[0];

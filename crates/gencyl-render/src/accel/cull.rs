@@ -98,9 +98,9 @@ pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
 }
 
 /// How finely to cut a cylinder into BVH pieces, as a level `l` (`2^l` pieces), at most
-/// [`MAX_PIECE_LEVEL`]: halve while halving shrinks the pieces' boxes, by their total half surface
-/// area (what the SAH charges a ray for), to at most [`SPLIT_GAIN`] of what it was. A fiber
-/// along a coordinate axis keeps one box (its halves' boxes add up to the same area); a
+/// [`MAX_PIECE_LEVEL`]: halve while halving shrinks the pieces' boxes, by their total half
+/// surface area (what the SAH charges a ray for), to at most [`SPLIT_GAIN`] of what it was. A
+/// fiber along a coordinate axis keeps one box (its halves' boxes add up to the same area); a
 /// diagonal or curved one is cut until its boxes hug it. The boxes judged are those of the
 /// pieces' control points grown by their reach ([`hull_areas`]), cheaper than the exact ones.
 pub fn level_for(c: &GeneralizedCylinder) -> u32 {
@@ -116,8 +116,8 @@ pub fn level_for(c: &GeneralizedCylinder) -> u32 {
 /// [`level_for`] halves while the pieces' total box area falls to at most this fraction.
 pub const SPLIT_GAIN: f64 = 0.75;
 
-/// For each level `l` up to [`MAX_PIECE_LEVEL`], the total half surface area of the boxes of the
-/// level's pieces' control points, each grown by the piece's reach.
+/// For each level `l` up to [`MAX_PIECE_LEVEL`], the total half surface area of the boxes of
+/// the level's pieces' control points, each grown by the piece's reach.
 pub fn hull_areas(c: &GeneralizedCylinder) -> [f64; MAX_PIECE_LEVEL as usize + 1] {
     fn down(
         c: &GeneralizedCylinder,

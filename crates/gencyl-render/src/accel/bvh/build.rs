@@ -62,7 +62,7 @@ struct Prim {
 /// A finite stand-in for a bound, for the build's arithmetic (centroids, areas).
 #[inline]
 fn fin(x: f32) -> f64 {
-    lesser(greater(x, -f32::MAX), f32::MAX) as f64
+    x.clamp(-f32::MAX, f32::MAX) as f64
 }
 
 impl Prim {
@@ -106,19 +106,6 @@ impl Prim {
             f32x4::new([g, h, i, 0.0]),
         ]
     }
-}
-
-/// The lesser of two bounds (one `minss`: bounds are never NaN, so `f32::min`'s NaN handling
-/// is not needed).
-#[inline]
-fn lesser(a: f32, b: f32) -> f32 {
-    if b < a { b } else { a }
-}
-
-/// The greater of two bounds.
-#[inline]
-fn greater(a: f32, b: f32) -> f32 {
-    if b > a { b } else { a }
 }
 
 /// A box during the build (in `f32`, as stored), in lanes `x, y, z` (a fourth lane is
@@ -169,6 +156,12 @@ impl Bounds {
     fn hi(&self) -> [f32; 3] {
         let [x, y, z, _] = self.max.to_array();
         [x, y, z]
+    }
+
+    /// The centre, in `f64` (of the finite stand-ins for infinite bounds).
+    fn center(&self) -> [f64; 3] {
+        let (lo, hi) = (self.lo(), self.hi());
+        std::array::from_fn(|k| 0.5 * (fin(lo[k]) + fin(hi[k])))
     }
 
     /// Half the surface area (0 for an empty box).
@@ -791,7 +784,7 @@ fn build_clustered(
                 id: id as u32,
                 count: w[1] - w[0],
                 bounds,
-                center: std::array::from_fn(|k| 0.5 * (fin(bounds.lo()[k]) + fin(bounds.hi()[k]))),
+                center: bounds.center(),
             }
         })
         .collect();
@@ -987,9 +980,7 @@ impl Bvh {
                 })
             })
             .reduce(|| Bounds::EMPTY, |a, b| a.union(&b));
-        let center = DVec3::from_array(std::array::from_fn(|k| {
-            0.5 * (fin(b.lo()[k]) + fin(b.hi()[k]))
-        }));
+        let center = DVec3::from_array(b.center());
         let (mut nodes, mut root, depth) = build_clustered(&mut prims, 0, 1, center, cluster_min);
         assert!(
             depth < MAX_DEPTH,
