@@ -623,6 +623,7 @@ impl PyScene {
                 on(&pool, || {
                     block
                         .par_iter()
+                        .with_max_len(256)
                         .map_init(integrator::Buffers::default, |buf, ray| {
                             integrator::xray_length(&self.world, ray, buf)
                         })

@@ -1409,6 +1409,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
                 let hits: usize = pool.install(|| {
                     use rayon::prelude::*;
                     rays.par_chunks(256)
+                        .with_max_len(1)
                         .map_init(Scratch::default, |scratch, chunk| {
                             chunk
                                 .iter()

@@ -44,7 +44,7 @@ impl RaycastStats {
 /// Rays per parallel work item.
 const CHUNK: usize = 256;
 /// Rays intersected before their rows are written: bounds the memory held for output.
-pub const BLOCK: usize = 1 << 13;
+pub const BLOCK: usize = 1 << 15;
 
 /// Casts every ray against the scene on the current rayon pool and writes the CSV (header and
 /// rows, in ray order) to `out`. Rows are for hits with `t > tmin`: the nearest per ray, or
@@ -98,6 +98,10 @@ pub fn cast_rays(
     let rows: Vec<Vec<(u32, SceneHit)>> = rays
         .par_chunks(CHUNK)
         .enumerate()
+        // Every chunk its own task: rayon's adaptive splitting otherwise leaves a quarter of
+        // the block as one sequential run, and a thread idle beside it where the rays' costs
+        // are uneven (camera rays: hair in some rows, background in others).
+        .with_max_len(1)
         .map(|(c, chunk)| {
             let first = first + c * CHUNK;
             let mut rows = Vec::new();

@@ -200,6 +200,7 @@ impl<'a> Projector<'a> {
         let mut all = vec![0.0f32; rows * columns * stacks];
         all.par_chunks_mut(columns * stacks)
             .enumerate()
+            .with_max_len(1)
             .for_each_init(
                 || {
                     (

@@ -273,9 +273,11 @@ pub fn render(
     let row_len = window.width() as usize * nc;
     let done = AtomicU64::new(0);
     let dropped = AtomicU64::new(0);
-    film.data.par_chunks_mut(row_len).enumerate().for_each_init(
-        Buffers::default,
-        |buf, (j, row)| {
+    film.data
+        .par_chunks_mut(row_len)
+        .enumerate()
+        .with_max_len(1)
+        .for_each_init(Buffers::default, |buf, (j, row)| {
             let y = window.y0 + j as u32;
             let mut row_dropped = 0;
             for (i, px) in row.chunks_mut(nc).enumerate() {
@@ -290,8 +292,7 @@ pub fn render(
                 dropped.fetch_add(row_dropped, Ordering::Relaxed);
             }
             progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-        },
-    );
+        });
     Rendered {
         film,
         non_finite_samples: dropped.into_inner(),
