@@ -50,6 +50,10 @@ pub trait Real:
     fn scale(self, k: f64) -> Self {
         self * Self::cst(k)
     }
+    /// `self / k` for a constant `k` (the same value as `self / Self::cst(k)` in `f64`).
+    fn div_cst(self, k: f64) -> Self {
+        self / Self::cst(k)
+    }
     /// Whether values enclose sets (intervals, and dual numbers of them) rather than points:
     /// constants such a computation needs must then be enclosures too (see [`Real::lift`]).
     const ENCLOSURE: bool = false;
@@ -99,6 +103,10 @@ impl Real for f64 {
     #[inline(always)]
     fn scale(self, k: f64) -> Self {
         self * k
+    }
+    #[inline(always)]
+    fn div_cst(self, k: f64) -> Self {
+        self / k
     }
 }
 
@@ -260,6 +268,14 @@ impl<T: Real> Real for Dual<T> {
         Dual {
             v: self.v.scale(k),
             d: self.d.scale(k),
+        }
+    }
+    /// `(f / k)' = f' / k` (what [`Div`] gives for a constant divisor, whose derivative is 0).
+    #[inline(always)]
+    fn div_cst(self, k: f64) -> Self {
+        Dual {
+            v: self.v.div_cst(k),
+            d: self.d.div_cst(k),
         }
     }
 }
@@ -813,6 +829,24 @@ impl Real for Taylor {
             self.h,
         )
     }
+    /// `(c + s t + r) / k = c/k + (s/k) t + r/k`: the two quotients' rounding goes into the
+    /// remainder, as for [`Real::scale`]. A divisor of 0 or NaN makes the whole line.
+    #[inline(always)]
+    fn div_cst(self, k: f64) -> Self {
+        if !(k != 0.0) {
+            return Taylor {
+                h: self.h,
+                ..Self::ENTIRE
+            };
+        }
+        let (c, s) = (self.c / k, self.s / k);
+        Taylor::finish(
+            c,
+            s,
+            self.rho / k.abs() + U4 * (c.abs() + s.abs() * self.h),
+            self.h,
+        )
+    }
 }
 
 /// A 2D vector over any [`Real`].
@@ -1047,6 +1081,11 @@ mod tests {
         let h = 1e-5;
         let fd = (f(Dual::var(x + h)).d - f(Dual::var(x - h)).d) / (2.0 * h);
         assert!((d2 - fd).abs() < 1e-8, "second derivative {d2} vs {fd}");
+        // Dividing by a constant is the quotient rule with a zero derivative, to the bit.
+        for k in [3.0, -0.37, 1e-300, 7e250] {
+            let y = f(Dual::var(x));
+            assert_eq!(y.div_cst(k), y / Dual::cst(k), "div_cst({k})");
+        }
     }
 
     /// `down` and `up` step past the neighbouring `f64`s, also for subnormals, zero, powers of
@@ -1142,12 +1181,13 @@ mod tests {
             // A member of b's set at the same t.
             let y = b.c + b.s * t + rng.range(-b.rho, b.rho);
             let k = rng.range(-3.0, 3.0);
-            let checks: [(&str, Taylor, f64); 9] = [
+            let checks: [(&str, Taylor, f64); 10] = [
                 ("add", a + b, x + y),
                 ("sub", a - b, x - y),
                 ("mul", a * b, x * y),
                 ("sqr", a.sqr(), x * x),
                 ("scale", a.scale(k), x * k),
+                ("div_cst", a.div_cst(k), x / k),
                 ("sin", a.sin(), x.sin()),
                 ("cos", a.cos(), x.cos()),
                 ("sin_cos.0", a.sin_cos().0, x.sin()),

@@ -79,24 +79,43 @@ impl HairSweep {
     pub fn minor_at<T: Real>(&self, u: T) -> T {
         Self::lerp(self.minor, u)
     }
+
+    /// `(sin, cos)` of the rotation `theta(u)`; of the constant where it does not turn (the
+    /// same values, without carrying `u`'s enclosure through the sine and cosine).
+    #[inline]
+    fn turn<T: Real>(&self, u: T) -> (T, T) {
+        if self.rotation[0] == self.rotation[1] {
+            T::cst(self.rotation[0]).sin_cos()
+        } else {
+            Self::lerp(self.rotation, u).sin_cos()
+        }
+    }
+
+    /// `x / k(u)` for a radius `k = [k0, k1]` linear in `u`; by the constant where `k0 = k1`.
+    #[inline]
+    fn over<T: Real>(k: [f64; 2], u: T, x: T) -> T {
+        if k[0] == k[1] {
+            x.div_cst(k[0])
+        } else {
+            x / Self::lerp(k, u)
+        }
+    }
 }
 
 impl SweepRule for HairSweep {
     #[inline]
     fn apply<T: Real>(&self, u: T, p: V2<T>) -> V2<T> {
-        let th = Self::lerp(self.rotation, u);
-        let (s, c) = th.sin_cos();
+        let (s, c) = self.turn(u);
         let (x, y) = (p.x * self.major_at(u), p.y * self.minor_at(u));
         V2::new(c * x - s * y, s * x + c * y)
     }
 
     #[inline]
     fn inverse<T: Real>(&self, u: T, q: V2<T>) -> V2<T> {
-        let th = Self::lerp(self.rotation, u);
-        let (s, c) = th.sin_cos();
+        let (s, c) = self.turn(u);
         V2::new(
-            (c * q.x + s * q.y) / self.major_at(u),
-            (c * q.y - s * q.x) / self.minor_at(u),
+            Self::over(self.major, u, c * q.x + s * q.y),
+            Self::over(self.minor, u, c * q.y - s * q.x),
         )
     }
 
