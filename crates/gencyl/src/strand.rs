@@ -149,6 +149,9 @@ impl Samples {
         let h = axis.hodograph();
         self.x.clear();
         self.t.clear();
+        // At their full size at once (a strand's first segment would grow them step by step).
+        self.x.reserve(steps + 1);
+        self.t.reserve(steps + 1);
         for j in 0..=steps {
             let u = j as f64 / steps as f64;
             let s = 1.0 - u;
@@ -199,6 +202,7 @@ impl Samples {
     /// rounding without being normalised.)
     fn propagate(&mut self, r0: DVec3) {
         self.normals.clear();
+        self.normals.reserve(self.x.len());
         self.normals.push(r0);
         let mut r = r0;
         for j in 1..self.x.len() {
@@ -245,6 +249,7 @@ impl Samples {
         let (mut prev, mut sum, mut jump) = ((x0, y0), 0.0, 0.0f64);
         let mut psi = std::mem::take(&mut self.psi);
         psi.clear();
+        psi.reserve(steps + 1);
         psi.push(0.0);
         for j in 1..=steps {
             let (x, y) = z(j);
