@@ -249,7 +249,6 @@ pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
     pub(crate) sweep: S,
     /// Whether the caps at `u = 0` and `u = 1` close the solid.
     pub(crate) caps: [bool; 2],
-    bounds: Aabb,
     /// Where the frame may jump, ascending ([`frenet_switches`] over the search range of the
     /// intersector): no enclosure may span one, and the solid may have a seam there.
     /// Boxed, and only where there are any (most axes have none): a thin pointer in the struct.
@@ -399,12 +398,6 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let framing = framing(&local)?;
         let [l0, l1] = sweep.scale_bound();
         let r = l0.max(l1) * section.bounding_radius();
-        let bounds = axis.points.iter().fold(Aabb::EMPTY, |b, &p| {
-            b.union(Aabb {
-                min: p - DVec3::splat(r),
-                max: p + DVec3::splat(r),
-            })
-        });
         let margin = crate::intersect::U_MARGIN;
         let switches = match framing {
             Framing::Frenet => Some(frenet_switches(&local, -margin, 1.0 + margin)),
@@ -421,7 +414,6 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             section,
             sweep,
             caps: [caps; 2],
-            bounds,
             switches,
             may_fold,
         })
@@ -517,9 +509,23 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     }
 
     /// A box holding the whole solid: the control points' box (the curve lies in their hull)
-    /// grown by the largest section radius.
+    /// grown by the largest section radius `r`, in world coordinates. Computed when asked (it
+    /// is not stored: 48 bytes a cylinder), from the local points: `origin + (lo - r)` and
+    /// `origin + (hi + r)`, each sum widened outward by four ulps of its size, which covers the
+    /// rounding of the two steps.
     pub fn bounds(&self) -> Aabb {
-        self.bounds
+        let [l0, l1] = self.sweep.scale_bound();
+        let r = DVec3::splat(l0.max(l1) * self.section.bounding_radius());
+        let (lo, hi) = self.axis.points[1..].iter().fold(
+            (self.axis.points[0], self.axis.points[0]),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        );
+        let (min, max) = (self.origin + (lo - r), self.origin + (hi + r));
+        let pad = |x: DVec3| x.abs() * (4.0 * f64::EPSILON) + DVec3::splat(f64::MIN_POSITIVE);
+        Aabb {
+            min: min - pad(min),
+            max: max + pad(max),
+        }
     }
 
     /// Heap bytes of the cylinder's own (the frame's switch list, a fixed frame; none for most
@@ -935,10 +941,96 @@ mod tests {
 
     /// The struct's size is most of a hair model's memory: a layout change shows here.
     #[test]
-    fn cylinder_is_272_bytes() {
+    fn cylinder_is_224_bytes() {
         assert_eq!(size_of::<Section>(), 8, "a profile is one shared pointer");
         assert_eq!(size_of::<Framing>(), 32, "a fixed frame is boxed");
-        assert_eq!(size_of::<GeneralizedCylinder>(), 272, "cylinder layout");
+        assert_eq!(size_of::<GeneralizedCylinder>(), 224, "cylinder layout");
+    }
+
+    /// The box computed on demand holds the solid: side points at every `(u, v)` of a grid
+    /// and cap points across each cap, for elliptical, twisted and round fibers with radii from
+    /// 1e-6 to 1e-1 of the axis' length, far from the origin (1e4) and near it. It is also as
+    /// tight as the box of the world control points grown by the section's reach: within a few
+    /// ulps of it.
+    #[test]
+    fn bounds_hold_the_solid_wherever_it_is() {
+        let mut rng = crate::test_rng::Lcg(41);
+        for case in 0..400 {
+            let far = if case % 2 == 0 { 1e4 } else { 1.0 };
+            let base = DVec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            let p0 = base * far;
+            let mut q = p0;
+            let points = [0, 1, 2, 3].map(|i| {
+                if i > 0 {
+                    q += rng.unit() * rng.range(0.2, 0.5);
+                }
+                q
+            });
+            let len = (points[3] - points[0]).length().max(0.1);
+            let r = len * 10f64.powf(rng.range(-6.0, -1.0));
+            let aspect = if case % 3 == 0 {
+                1.0
+            } else {
+                rng.range(0.4, 1.0)
+            };
+            let twist = if case % 5 == 0 {
+                0.0
+            } else {
+                rng.range(-6.0, 6.0)
+            };
+            let sweep = HairSweep {
+                major: [r, r * rng.range(0.5, 1.5)],
+                minor: [r * aspect, r * aspect * rng.range(0.5, 1.5)],
+                rotation: [0.0, twist],
+            };
+            let Ok(c) = GeneralizedCylinder::new(
+                CubicBezier::new(points),
+                Section::default(),
+                sweep,
+                true,
+                None,
+            ) else {
+                continue;
+            };
+            let b = c.bounds();
+            let inside = |p: DVec3| b.min.cmple(p).all() && p.cmple(b.max).all();
+            for i in 0..=16 {
+                let u = i as f64 / 16.0;
+                for j in 0..16 {
+                    let v = j as f64 / 16.0 * std::f64::consts::TAU;
+                    let p = c.surface_point(u, v);
+                    assert!(
+                        inside(p),
+                        "case {case}: side point ({u}, {v}) {p} outside {b:?}"
+                    );
+                    if i == 0 || i == 16 {
+                        // Across the cap: the axis point and halfway to the rim.
+                        let a = c.origin + c.axis.point(u);
+                        assert!(
+                            inside(a) && inside(0.5 * (a + p)),
+                            "case {case}: cap at {u}"
+                        );
+                    }
+                }
+            }
+            let reach = sweep.scale_bound()[0].max(sweep.scale_bound()[1]);
+            let world = points.iter().fold(Aabb::EMPTY, |acc, &p| {
+                acc.union(Aabb {
+                    min: p - DVec3::splat(reach),
+                    max: p + DVec3::splat(reach),
+                })
+            });
+            let slack = 16.0 * f64::EPSILON * (far + len);
+            assert!(
+                (b.min - world.min).abs().max_element() <= slack
+                    && (b.max - world.max).abs().max_element() <= slack,
+                "case {case}: {b:?} against {world:?}"
+            );
+        }
     }
 
     /// A straight axis' fixed frame lives on the heap and is counted there.

@@ -243,7 +243,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         if !(d.length_squared() > 0.0) || !d.is_finite() || !ray.origin.is_finite() {
             return;
         }
-        let Some((b0, b1)) = self.bounds().ray_range(ray) else {
+        let bounds = self.bounds();
+        let Some((b0, b1)) = bounds.ray_range(ray) else {
             return;
         };
         if b1 <= tmin || b0 >= tmax {
@@ -251,7 +252,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         }
         // Work near the fiber: o is the ray's point closest to the box centre, t = t0 + w.
         let o_local = ray.origin - self.origin;
-        let t0 = (self.bounds().center() - self.origin - o_local).dot(d) / d.length_squared();
+        let t0 = (bounds.center() - self.origin - o_local).dot(d) / d.length_squared();
         let o = o_local + t0 * d;
 
         let mut roots = SideRoots::new();
@@ -336,7 +337,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         // ill-conditioned along the ray): hits within DUPLICATE of the fiber's size along the
         // ray, on the same part and the same side of the surface, are one. (An entry and an
         // exit that close stay two: their normals face opposite ways along the ray.)
-        let close = DUPLICATE * (self.bounds().max - self.bounds().min).length() / d.length();
+        let close = DUPLICATE * (bounds.max - bounds.min).length() / d.length();
         let same = |h: &Hit, k: &Hit| {
             (h.t - k.t).abs() <= close
                 && h.part == k.part
