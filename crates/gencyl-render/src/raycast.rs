@@ -45,8 +45,12 @@ impl RaycastStats {
 const CHUNK: usize = 256;
 /// Rows formatted as one parallel work item.
 const FORMAT_CHUNK: usize = 2048;
+/// Rows formatted before they are written: bounds the text held at once (about 8 MB).
+const FORMAT_BATCH: usize = 32 * FORMAT_CHUNK;
 /// Rays intersected before their rows are written: bounds the memory held for output.
 pub const BLOCK: usize = 1 << 15;
+/// [`BLOCK`] for every hit of each ray (`--all`), whose rows can be a hundred a ray.
+const ALL_BLOCK: usize = 1 << 13;
 
 /// Casts every ray against the scene on the current rayon pool and writes the CSV (header and
 /// rows, in ray order) to `out`. Rows are for hits with `t > tmin`: the nearest per ray, or
@@ -63,24 +67,27 @@ pub fn raycast(
         ..Default::default()
     };
     writeln!(out, "{HEADER}")?;
-    for (b, block) in rays.chunks(BLOCK).enumerate() {
+    let size = if opts.all { ALL_BLOCK } else { BLOCK };
+    for (b, block) in rays.chunks(size).enumerate() {
         let start = Instant::now();
-        let rows = cast_rays(scene, block, b * BLOCK, tmin, opts.all);
+        let rows = cast_rays(scene, block, b * size, tmin, opts.all);
         stats.intersect_time += start.elapsed();
         // The rows' text in parallel too (shortest round-trip digits cost about as much as a
         // camera ray's intersection), written in order.
-        let texts: Vec<String> = rows
-            .par_chunks(FORMAT_CHUNK)
-            .map(|rows| {
-                let mut text = String::with_capacity(rows.len() * 128);
-                for (ray, h) in rows {
-                    format_row(&mut text, *ray as usize, h);
-                }
-                text
-            })
-            .collect();
-        for text in &texts {
-            out.write_all(text.as_bytes())?;
+        for batch in rows.chunks(FORMAT_BATCH) {
+            let texts: Vec<String> = batch
+                .par_chunks(FORMAT_CHUNK)
+                .map(|rows| {
+                    let mut text = String::with_capacity(rows.len() * 128);
+                    for (ray, h) in rows {
+                        format_row(&mut text, *ray as usize, h);
+                    }
+                    text
+                })
+                .collect();
+            for text in &texts {
+                out.write_all(text.as_bytes())?;
+            }
         }
         stats.rows += rows.len();
     }
