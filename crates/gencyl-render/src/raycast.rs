@@ -270,6 +270,43 @@ mod tests {
     }
 
     #[test]
+    fn rows_across_blocks_and_format_batches_keep_ray_order() {
+        // Rays across a short fiber: 80,000 nearest-hit rays (three blocks, two format
+        // batches), and 20,000 with every hit (three blocks of `--all`, two rows a hit ray).
+        let src =
+            "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.1, 0.1]\n";
+        let scene = Scene::new(SceneDescription::parse(src, "s").unwrap().cylinders);
+        for (n, all) in [(80_000, false), (20_000, true)] {
+            let rays: Vec<Ray> = (0..n)
+                .map(|i| {
+                    let x = 3.2 * (i % 1000) as f64 / 1000.0 - 0.1;
+                    let y = 0.25 * ((i / 1000) as f64 / (n / 1000) as f64) - 0.125;
+                    Ray::new(DVec3::new(x, y, 1.0), DVec3::new(0.01, 0.0, -1.0))
+                })
+                .collect();
+            let mut out = Vec::new();
+            let stats = raycast(&scene, &rays, 0.0, RaycastOptions { all }, &mut out).unwrap();
+            let mut want = format!("{HEADER}\n");
+            let (mut hits, mut scratch) = (Vec::new(), Scratch::default());
+            let mut rows = 0;
+            for (i, ray) in rays.iter().enumerate() {
+                hits.clear();
+                cast(&scene, ray, 0.0, all, &mut hits, &mut scratch);
+                for h in &hits {
+                    format_row(&mut want, i, h);
+                    rows += 1;
+                }
+            }
+            assert!(rows > n / 2, "most rays hit: {rows}");
+            assert_eq!(stats.rows, rows, "rows, all = {all}");
+            assert!(
+                String::from_utf8(out).unwrap() == want,
+                "the CSV, all = {all}"
+            );
+        }
+    }
+
+    #[test]
     fn output_rows() {
         let src =
             "[[cylinder]]\nbezier = [[0,0,0],[1,0,0],[2,0,0],[3,0,0]]\nmajor_radius = [0.1, 0.1]\n";
