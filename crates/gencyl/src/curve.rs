@@ -54,22 +54,21 @@ impl CubicBezier {
     /// curve (a fiber `1e-150` across squares its derivatives to `1e-300` and their cross
     /// product's square to `1e-600`).
     pub fn derivative_scales(&self) -> [f64; 2] {
-        let inv = |m: f64| {
-            if m > 0.0 && m.is_finite() {
-                1.0 / m
-            } else {
-                1.0
-            }
-        };
-        let m1 = self
-            .hodograph()
-            .iter()
-            .fold(0.0f64, |m, h| m.max(h.abs().max_element()));
         let m2 = self
             .second_hodograph()
             .iter()
             .fold(0.0f64, |m, h| m.max(h.abs().max_element()));
-        [inv(m1), inv(m2)]
+        [self.speed_scale(), unit_scale(m2)]
+    }
+
+    /// The first of [`Self::derivative_scales`], `1 / max |a'|`, alone.
+    #[inline]
+    pub fn speed_scale(&self) -> f64 {
+        let m1 = self
+            .hodograph()
+            .iter()
+            .fold(0.0f64, |m, h| m.max(h.abs().max_element()));
+        unit_scale(m1)
     }
 
     /// The constant `a'''`.
@@ -192,6 +191,16 @@ fn combine<T: Real, const N: usize>(pts: &[DVec3; N], w: &[T; N]) -> V3<T> {
         acc = acc + V3::new(wi.scale(p.x), wi.scale(p.y), wi.scale(p.z));
     }
     acc
+}
+
+/// `1 / m` for a positive finite size `m`, else 1 (a vanishing or unbounded derivative keeps its
+/// scale).
+fn unit_scale(m: f64) -> f64 {
+    if m > 0.0 && m.is_finite() {
+        1.0 / m
+    } else {
+        1.0
+    }
 }
 
 #[cfg(test)]

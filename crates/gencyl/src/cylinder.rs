@@ -768,7 +768,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 // As for Frenet with a'' replaced by r: C = a' x r, n.V = |a'| (r.V)/|C|,
                 // b.V = (C.V)/|C| (a'.V = 0). g does not change when a' is scaled (|a'| and C
                 // scale alike), so a' is taken at unit size: no product underflows.
-                let [k1, _] = self.axis.derivative_scales();
+                let k1 = self.axis.speed_scale();
                 let d1 = d1.scaled(T::cst(k1));
                 let c = d1.cross(V3::cst(*r));
                 let p = self
@@ -802,7 +802,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         match &self.framing {
             Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
             Framing::Projected(r) => {
-                let [k1, _] = self.axis.derivative_scales();
+                let k1 = self.axis.speed_scale();
                 projected_frame(d1.scaled(T::cst(k1)), *r)
             }
             Framing::Frenet => {

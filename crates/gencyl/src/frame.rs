@@ -135,7 +135,7 @@ impl Framing {
         if r == DVec3::ZERO || !r.is_finite() {
             return 0.0;
         }
-        let [k1, _] = axis.derivative_scales();
+        let k1 = axis.speed_scale();
         let h = axis.hodograph().map(|h| h * k1);
         let w = h.map(|h| r.cross(h));
         let square = |v: [DVec3; 3]| -> Bernstein<5> {
@@ -510,7 +510,7 @@ pub fn frame_r<T: Real>(axis: &CubicBezier, framing: &Framing, u: T) -> [V3<T>; 
     match framing {
         Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
         Framing::Projected(r) => {
-            let [k1, _] = axis.derivative_scales();
+            let k1 = axis.speed_scale();
             projected_frame(axis.d1_r(u).scaled(T::cst(k1)), *r)
         }
         Framing::Frenet => {
