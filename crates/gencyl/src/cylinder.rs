@@ -687,9 +687,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// `(a(u) - p, a'(u), a''(u))`.
     ///
     /// For enclosure types they are the Taylor polynomials about `m = u.value()` in
-    /// `t = u - m` (exact: the axis is a cubic), with coefficients enclosed by interval
-    /// arithmetic at the point `m` ([`Real::cubic_at`]; the hodographs' control points are taken
-    /// as exact, as everywhere). All dependence on `u` then goes through the one small
+    /// `t = u - m` (exact: the axis is a cubic), with coefficients enclosed at the point `m`
+    /// ([`Real::cubic_at`]; by [`CubicBezier::jet_enclosure`]'s rounding bound, or interval
+    /// arithmetic outside its range; the hodographs' control points are taken as exact, as
+    /// everywhere). All dependence on `u` then goes through the one small
     /// quantity `t in [-h, h]`, and the enclosures are about as wide as the quantities vary
     /// over the interval. The Bernstein form evaluated over an interval counts the variation
     /// of each basis function separately, which is several times wider, and every later
@@ -704,10 +705,15 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             ];
         }
         let m = u.value();
-        let at = Interval::cst(m);
-        let k0 = self.axis.point_r(at) - V3::cst(p);
-        let k1 = self.axis.d1_r(at);
-        let k2 = self.axis.d2_r(at);
+        let [k0, k1, k2] = self.axis.jet_enclosure(m).unwrap_or_else(|| {
+            let at = Interval::cst(m);
+            [
+                self.axis.point_r(at),
+                self.axis.d1_r(at),
+                self.axis.d2_r(at),
+            ]
+        });
+        let k0 = k0 - V3::cst(p);
         let k3 = V3::<Interval>::cst(self.axis.third_derivative());
         let zero = Interval::cst(0.0);
         let six = Interval::cst(6.0);
