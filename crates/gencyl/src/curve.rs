@@ -153,9 +153,14 @@ impl CubicBezier {
     /// lies within `9u max|P_i| (1 + 1e-9)` of the exact value: the enclosure takes `16u max|P_i|`,
     /// plus `1e-300 (1 + max|P_i|)` for products that underflow, widened by an ulp
     /// ([`Interval::new`]). What [`Self::point_r`] and its kin give in [`Interval`] arithmetic, at
-    /// a fifth of the cost.
+    /// a fifth of the cost. Control points beyond `1e300` (whose sums could overflow) also give
+    /// `None`.
     pub fn jet_enclosure(&self, m: f64) -> Option<[V3<Interval>; 3]> {
-        if !(-JET_MARGIN..=1.0 + JET_MARGIN).contains(&m) {
+        let big = self
+            .points
+            .iter()
+            .fold(0.0f64, |acc, p| acc.max(p.abs().max_element()));
+        if !(-JET_MARGIN..=1.0 + JET_MARGIN).contains(&m) || !(big <= 1e300) {
             return None;
         }
         fn enclose<const N: usize>(pts: &[DVec3; N], w: &[f64; N]) -> V3<Interval> {
@@ -370,6 +375,8 @@ mod tests {
         }
         assert_eq!(checked, 27000);
         let c = sample();
+        let huge = CubicBezier::new(c.points.map(|p| p * 1e301));
+        assert!(huge.jet_enclosure(0.5).is_none(), "sums could overflow");
         assert!(c.jet_enclosure(-2.0 * JET_MARGIN).is_none());
         assert!(c.jet_enclosure(1.0 + 2.0 * JET_MARGIN).is_none());
         assert!(c.jet_enclosure(f64::NAN).is_none());
