@@ -961,6 +961,7 @@ mod tests {
     #[test]
     fn bounds_hold_the_solid_wherever_it_is() {
         let mut rng = crate::test_rng::Lcg(41);
+        let mut built = 0;
         for case in 0..400 {
             let far = if case % 2 == 0 { 1e4 } else { 1.0 };
             let base = DVec3::new(
@@ -1002,6 +1003,7 @@ mod tests {
             ) else {
                 continue;
             };
+            built += 1;
             let b = c.bounds();
             let inside = |p: DVec3| b.min.cmple(p).all() && p.cmple(b.max).all();
             for i in 0..=16 {
@@ -1037,6 +1039,7 @@ mod tests {
                 "case {case}: {b:?} against {world:?}"
             );
         }
+        assert!(built >= 360, "most random axes make cylinders: {built} of 400");
     }
 
     /// A straight axis' fixed frame lives on the heap and is counted there.
