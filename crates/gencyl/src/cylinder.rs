@@ -1039,7 +1039,10 @@ mod tests {
                 "case {case}: {b:?} against {world:?}"
             );
         }
-        assert!(built >= 360, "most random axes make cylinders: {built} of 400");
+        assert!(
+            built >= 360,
+            "most random axes make cylinders: {built} of 400"
+        );
     }
 
     /// A straight axis' fixed frame lives on the heap and is counted there.
