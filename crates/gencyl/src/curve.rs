@@ -153,22 +153,25 @@ impl CubicBezier {
     /// lies within `9u max|P_i| (1 + 1e-9)` of the exact value: the enclosure takes `16u max|P_i|`,
     /// plus `1e-300 (1 + max|P_i|)` for products that underflow, widened by an ulp
     /// ([`Interval::new`]). What [`Self::point_r`] and its kin give in [`Interval`] arithmetic, at
-    /// a fifth of the cost. Control points beyond `1e300` (whose sums could overflow) also give
-    /// `None`.
+    /// a fifth of the cost. Control points (or hodograph points) beyond `1e300`, whose sums
+    /// could overflow, also give `None`.
     pub fn jet_enclosure(&self, m: f64) -> Option<[V3<Interval>; 3]> {
-        let big = self
-            .points
-            .iter()
-            .fold(0.0f64, |acc, p| acc.max(p.abs().max_element()));
-        if !(-JET_MARGIN..=1.0 + JET_MARGIN).contains(&m) || !(big <= 1e300) {
+        if !(-JET_MARGIN..=1.0 + JET_MARGIN).contains(&m) {
             return None;
         }
-        fn enclose<const N: usize>(pts: &[DVec3; N], w: &[f64; N]) -> V3<Interval> {
-            let v = combine(pts, w);
+        fn enclose<const N: usize>(pts: &[DVec3; N], w: &[f64; N]) -> Option<V3<Interval>> {
             let size = pts.iter().fold(DVec3::ZERO, |acc, p| acc.max(p.abs()));
+            if !(size.max_element() <= 1e300) {
+                return None;
+            }
+            let v = combine(pts, w);
             let e = |k: f64| 16.0 * f64::EPSILON * 0.5 * k + 1e-300 * (1.0 + k);
             let wrap = |v: f64, k: f64| Interval::new(v - e(k), v + e(k));
-            V3::new(wrap(v.x, size.x), wrap(v.y, size.y), wrap(v.z, size.z))
+            Some(V3::new(
+                wrap(v.x, size.x),
+                wrap(v.y, size.y),
+                wrap(v.z, size.z),
+            ))
         }
         let s = 1.0 - m;
         let (s2, m2) = (s * s, m * m);
@@ -176,9 +179,9 @@ impl CubicBezier {
         let d1 = [s2, 2.0 * (s * m), m2];
         let d2 = [s, m];
         Some([
-            enclose(&self.points, &point),
-            enclose(&self.hodograph(), &d1),
-            enclose(&self.second_hodograph(), &d2),
+            enclose(&self.points, &point)?,
+            enclose(&self.hodograph(), &d1)?,
+            enclose(&self.second_hodograph(), &d2)?,
         ])
     }
 

@@ -514,8 +514,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// `origin + (hi + r)`, each sum widened outward by four ulps of its size, which covers the
     /// rounding of the two steps.
     pub fn bounds(&self) -> Aabb {
-        let [l0, l1] = self.sweep.scale_bound();
-        let r = DVec3::splat(l0.max(l1) * self.section.bounding_radius());
+        let r = DVec3::splat(self.reach());
         let (lo, hi) = self.axis.points[1..].iter().fold(
             (self.axis.points[0], self.axis.points[0]),
             |(lo, hi), &p| (lo.min(p), hi.max(p)),
@@ -526,6 +525,13 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             min: min - pad(min),
             max: max + pad(max),
         }
+    }
+
+    /// The farthest the solid gets from its axis: the rule's largest stretch times the section's
+    /// bounding radius.
+    pub fn reach(&self) -> f64 {
+        let [l0, l1] = self.sweep.scale_bound();
+        l0.max(l1) * self.section.bounding_radius()
     }
 
     /// Heap bytes of the cylinder's own (the frame's switch list, a fixed frame; none for most

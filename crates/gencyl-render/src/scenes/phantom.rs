@@ -64,7 +64,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::OnceLock;
 
-use gencyl::{CrossSection, CubicBezier, GeneralizedCylinder, Section, Strand, SweepRule};
+use gencyl::{CubicBezier, GeneralizedCylinder, Section, Strand, SweepRule};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -2140,8 +2140,7 @@ struct Piece {
 /// radius and `dev` the farther inner control point's distance from the chord (the part lies in
 /// its control points' hull).
 fn pieces(ci: usize, c: &GeneralizedCylinder) -> Vec<Piece> {
-    let [l0, l1] = c.sweep().scale_bound();
-    let r = l0.max(l1) * c.section().bounding_radius();
+    let r = c.reach();
     let bez = c.axis();
     let p = bez.points;
     let poly = (p[1] - p[0]).length() + (p[2] - p[1]).length() + (p[3] - p[2]).length();
