@@ -568,7 +568,7 @@ fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -
     let me = out.len();
     out.push(Node4 {
         min: [[f32::INFINITY; 4]; 3],
-        max: [[f32::NEG_INFINITY; 4]; 3],
+        max: [[f32::INFINITY; 4]; 3],
         child: [Child::EMPTY; 4],
     });
     for (i, &kid) in kids.iter().enumerate() {
@@ -981,6 +981,12 @@ impl Bvh {
             })
             .reduce(|| Bounds::EMPTY, |a, b| a.union(&b));
         let center = DVec3::from_array(b.center());
+        // The stored boxes lie within the root box rounded outward relative to the centre
+        // (within 2^-23 of its size, or the smallest normal f32): 1e-6 covers both.
+        let extent = std::array::from_fn(|k| {
+            let (lo, hi) = (f64::from(b.lo()[k]), f64::from(b.hi()[k]));
+            (hi - center[k]).max(center[k] - lo) * (1.0 + 1e-6) + 1e-30
+        });
         let (mut nodes, mut root, depth) = build_clustered(&mut prims, 0, 1, center, cluster_min);
         assert!(
             depth < MAX_DEPTH,
@@ -999,6 +1005,7 @@ impl Bvh {
                 max: DVec3::from_array(b.hi().map(f64::from)),
             },
             center,
+            extent,
             indices,
             primitives: prims.len(),
             depth,

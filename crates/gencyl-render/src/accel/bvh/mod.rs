@@ -53,8 +53,8 @@ impl Child {
 }
 
 /// One node of the 4-wide tree: the children's boxes by axis and lane (`min[k][i]` is the
-/// lower bound of child `i` on axis `k`; an empty slot has the empty box `+inf..-inf`), and
-/// the children. 128 bytes, aligned to 64 so that a node spans two cache lines, not three.
+/// lower bound of child `i` on axis `k`; an empty slot has the box `+inf..+inf`, which no ray
+/// meets: see [`Slabs32`]), and the children. 128 bytes, aligned to 64 so that a node spans two cache lines, not three.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 struct Node4 {
@@ -75,6 +75,9 @@ pub struct Bvh {
     /// The point node boxes are stored relative to (the root box's centre), so that their `f32`
     /// bounds keep their precision far from the world's origin.
     center: DVec3,
+    /// At least the largest `|coordinate|` of any node box on each axis, relative to `center`
+    /// (the `f32` box test takes only rays whose entries into such boxes cannot overflow).
+    extent: [f64; 3],
     /// The keys of the leaves of two or more primitives, leaf by leaf.
     indices: Vec<u32>,
     /// Primitive count.
@@ -113,6 +116,7 @@ impl Default for Bvh {
             root: None,
             bounds: Aabb::EMPTY,
             center: DVec3::ZERO,
+            extent: [0.0; 3],
             indices: Vec::new(),
             primitives: 0,
             depth: 0,
@@ -197,9 +201,12 @@ impl Bvh {
         if !slab.meets(&self.bounds, ray, tmax) {
             return;
         }
-        match Slabs32::new(&slab, tmin) {
-            Some(fast) => self.walk(root, &fast, tmin, tmax, prefetch_leaf, visit),
-            None => self.walk(root, &slab, tmin, tmax, prefetch_leaf, visit),
+        if let Some(fast) = Slabs32::<false>::new(&slab, tmin, &self.extent) {
+            self.walk(root, &fast, tmin, tmax, prefetch_leaf, visit);
+        } else if let Some(fast) = Slabs32::<true>::new(&slab, tmin, &self.extent) {
+            self.walk(root, &fast, tmin, tmax, prefetch_leaf, visit);
+        } else {
+            self.walk(root, &slab, tmin, tmax, prefetch_leaf, visit);
         }
     }
 
@@ -303,7 +310,8 @@ trait BoxTest {
 /// `o - c`. On a slab `lo..hi` the ray is inside for `t` between `(lo - o) / d` and
 /// `(hi - o) / d`. No NaN arises: the origin is finite, a zero direction component takes the
 /// flat case (`0 * inf` would be NaN), and `(+-inf - o) * inv` (an empty slot's bound) is
-/// infinite.
+/// infinite. The range ends at `f64::MAX` at most, so that an empty slot (`+inf..+inf`) is
+/// never entered: a box whose entry overflows to `+inf` could hold no hit at a finite `t`.
 struct Slabs {
     /// `o - c` and `1 / d`, as arrays (indexing a `DVec3` by axis costs a branch per access).
     origin: [f64; 3],
@@ -365,7 +373,7 @@ impl BoxTest for Slabs {
     #[inline]
     fn entries(&self, n: &Node4, tmax: f64) -> ([f64; 4], i32) {
         let mut t0 = f64x4::splat(self.tmin);
-        let mut t1 = f64x4::splat(tmax);
+        let mut t1 = f64x4::splat(tmax.min(f64::MAX));
         let mut inside = f64x4::splat(0.0).cmp_le(f64x4::splat(0.0));
         for k in 0..3 {
             let (lo, hi) = (lanes(&n.min[k]), lanes(&n.max[k]));
@@ -386,7 +394,9 @@ impl BoxTest for Slabs {
 
 /// The same test in `f32` lanes, rounded so that it never misses a box the exact test meets:
 /// the fast path, for rays with `tmin >= 0` whose origin and inverse direction are well inside
-/// `f32`'s range.
+/// `f32`'s range. `FLAT`: whether the ray has a zero direction component (then that axis is a
+/// containment test, and the others take a branch each to skip it); rays without one, nearly
+/// all, run the test without a branch.
 ///
 /// With `x = lo - o` and the ray's `1 / d`, each computed `fl(fl(x') inv')` is within
 /// `(1 + 2^-24)^2` of `x' inv'`; the near plane takes the origin rounded toward the box
@@ -394,12 +404,23 @@ impl BoxTest for Slabs {
 /// opposite, so the near value is never above the true one where it is positive, the far
 /// value never below it where it is positive, and signs survive rounding: with `tmin >= 0`
 /// only positive values can decide. `TINY` covers underflow.
-struct Slabs32 {
-    near_o: [f32x4; 3],
-    far_o: [f32x4; 3],
-    near_inv: [f32x4; 3],
-    far_inv: [f32x4; 3],
-    neg: [bool; 3],
+///
+/// Which of a box's planes is near depends only on the ray (the sign of `d`), so each axis'
+/// lower plane `lo` and upper plane `hi` are given the origin and inverse of their role once
+/// per ray, and a node's test is `a = (lo - o_lo) inv_lo`, `b = (hi - o_hi) inv_hi`, entry
+/// `max_k min(a, b)`, exit `min_k max(a, b)`: `min(a, b)` is the near value or below it and
+/// `max(a, b)` the far value or above it, so no box the exact test meets is missed. An empty
+/// slot is `+inf..+inf`: `a = b = +inf` (entry `+inf`) or `-inf` (exit `-inf`), never met,
+/// since the range ends at `f32::MAX` at most and the test takes only rays for which every
+/// real box's `a` and `b` are finite: `(extent + |o|) |1/d| <= F32_REACH` on each axis.
+struct Slabs32<const FLAT: bool> {
+    /// The origin and inverse direction for each axis' lower and upper plane. On a flat axis
+    /// `o_lo` is the origin rounded up and `o_hi` rounded down (the box holds the ray's line
+    /// where `lo <= o_lo` and `hi >= o_hi`).
+    o_lo: [f32x4; 3],
+    o_hi: [f32x4; 3],
+    inv_lo: [f32x4; 3],
+    inv_hi: [f32x4; 3],
     flat: [bool; 3],
     tmin: f32x4,
 }
@@ -411,46 +432,56 @@ const TINY: f32 = f32::MIN_POSITIVE;
 /// The largest origin coordinate or inverse direction (and the smallest inverse) the `f32`
 /// test takes.
 const F32_SAFE: f64 = 1e30;
+/// The largest distance along an axis over `|d|` on that axis (a box's `|x - o| / |d_k|`)
+/// the `f32` test takes: its values, grown by their roundings, stay below `f32::MAX`.
+const F32_REACH: f64 = 1e38;
 
-impl Slabs32 {
-    fn new(s: &Slabs, tmin: f64) -> Option<Self> {
-        if !(tmin >= 0.0) {
+impl<const FLAT: bool> Slabs32<FLAT> {
+    /// The `f32` test of the ray `s` against boxes within `extent` of the centre, if its range
+    /// and numbers suit it and it has a flat axis exactly when `FLAT`.
+    fn new(s: &Slabs, tmin: f64, extent: &[f64; 3]) -> Option<Self> {
+        if !(tmin >= 0.0) || s.flat.contains(&true) != FLAT {
             return None;
         }
-        for k in 0..3 {
-            let inv = s.inv[k].abs();
-            if !(s.origin[k].abs() <= F32_SAFE)
-                || !(s.flat[k] || (1.0 / F32_SAFE..=F32_SAFE).contains(&inv))
-            {
-                return None;
-            }
+        let suits = |k: usize| {
+            let (o, inv) = (s.origin[k].abs(), s.inv[k].abs());
+            o <= F32_SAFE
+                && (s.flat[k]
+                    || (1.0 / F32_SAFE..=F32_SAFE).contains(&inv)
+                        && (extent[k] + o) * inv <= F32_REACH)
+        };
+        if !(0..3).all(suits) {
+            return None;
         }
-        let mut near_o = [0.0f32; 3];
-        let mut far_o = [0.0f32; 3];
-        let mut near_inv = [0.0f32; 3];
-        let mut far_inv = [0.0f32; 3];
+        let mut o_lo = [0.0f32; 3];
+        let mut o_hi = [0.0f32; 3];
+        let mut inv_lo = [0.0f32; 3];
+        let mut inv_hi = [0.0f32; 3];
         for k in 0..3 {
             // `o - c` was rounded to the nearest f64: `at_or_above` and `at_or_below` widen by
             // far more than its ulp.
             let (o, inv) = (s.origin[k], s.inv[k]);
             let (o_up, o_down) = (at_or_above(o), at_or_below(o));
-            (near_o[k], far_o[k]) = if s.neg[k] && !s.flat[k] {
-                (o_down, o_up)
-            } else {
-                // The flat case checks lo <= o' (rounded up) and hi >= o'' (rounded down).
-                (o_up, o_down)
-            };
             // Within 2^-24 of the scaled values, so |near| <= |1/d| (1 - EPS) and
             // |far| >= |1/d| (1 + EPS); both normal f32 (|inv| is within F32_SAFE).
-            near_inv[k] = (inv * (1.0 - 2.0 * EPS)) as f32;
-            far_inv[k] = (inv * (1.0 + 2.0 * EPS)) as f32;
+            let near_inv = (inv * (1.0 - 2.0 * EPS)) as f32;
+            let far_inv = (inv * (1.0 + 2.0 * EPS)) as f32;
+            // The lower plane takes the origin rounded up and the upper one rounded down,
+            // whichever is near (`x' <= x` at the near plane where d > 0, `x' >= x` at the far
+            // one where d < 0, and the other way round at the upper plane); the near plane is
+            // the lower one where d > 0, the upper one where d < 0.
+            (o_lo[k], o_hi[k]) = (o_up, o_down);
+            (inv_lo[k], inv_hi[k]) = if s.neg[k] {
+                (far_inv, near_inv)
+            } else {
+                (near_inv, far_inv)
+            };
         }
         Some(Slabs32 {
-            near_o: near_o.map(f32x4::splat),
-            far_o: far_o.map(f32x4::splat),
-            near_inv: near_inv.map(f32x4::splat),
-            far_inv: far_inv.map(f32x4::splat),
-            neg: s.neg,
+            o_lo: o_lo.map(f32x4::splat),
+            o_hi: o_hi.map(f32x4::splat),
+            inv_lo: inv_lo.map(f32x4::splat),
+            inv_hi: inv_hi.map(f32x4::splat),
             flat: s.flat,
             tmin: f32x4::splat(if tmin <= F32_SAFE {
                 at_or_below(tmin)
@@ -478,15 +509,17 @@ fn at_or_below(x: f64) -> f32 {
 /// The relative growth of [`at_or_above`] and [`at_or_below`] before rounding to `f32`.
 const MARGIN: f64 = 1.0 / (1u64 << 22) as f64;
 
-impl BoxTest for Slabs32 {
+impl<const FLAT: bool> BoxTest for Slabs32<FLAT> {
     type T = f32;
 
+    /// At most `f32::MAX` (so that an empty slot is never entered: every real box's values
+    /// are finite and below it).
     #[inline]
     fn limit(&self, tmax: f64) -> f32 {
         if tmax <= F32_SAFE {
             at_or_above(tmax)
         } else {
-            f32::INFINITY
+            f32::MAX
         }
     }
 
@@ -497,16 +530,18 @@ impl BoxTest for Slabs32 {
         let mut inside = f32x4::splat(0.0).cmp_le(f32x4::splat(0.0));
         for k in 0..3 {
             let (lo, hi) = (f32x4::from(n.min[k]), f32x4::from(n.max[k]));
-            if self.flat[k] {
-                inside = inside & lo.cmp_le(self.near_o[k]) & hi.cmp_ge(self.far_o[k]);
+            if FLAT && self.flat[k] {
+                inside = inside & lo.cmp_le(self.o_lo[k]) & hi.cmp_ge(self.o_hi[k]);
                 continue;
             }
-            let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
-            t0 = t0.fast_max((near - self.near_o[k]) * self.near_inv[k]);
-            t1 = t1.fast_min((far - self.far_o[k]) * self.far_inv[k]);
+            let a = (lo - self.o_lo[k]) * self.inv_lo[k];
+            let b = (hi - self.o_hi[k]) * self.inv_hi[k];
+            t0 = t0.fast_max(a.fast_min(b));
+            t1 = t1.fast_min(a.fast_max(b));
         }
         let t0 = t0 - f32x4::splat(TINY);
-        let hit = (t0.cmp_le(t1 + f32x4::splat(TINY)) & inside).move_mask();
+        let met = t0.cmp_le(t1 + f32x4::splat(TINY));
+        let hit = if FLAT { met & inside } else { met }.move_mask();
         (t0.to_array(), hit)
     }
 }
@@ -589,7 +624,13 @@ mod tests {
                 .map(|_| {
                     let c =
                         DVec3::splat(offset) + rng.in_box(DVec3::ZERO, DVec3::splat(50.0 * size));
-                    let h = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * size;
+                    let mut h = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * size;
+                    // Flat boxes and points too (the test takes a box's planes in either order).
+                    match rng.next_u64() % 8 {
+                        0 => h.y = 0.0,
+                        1 => h = DVec3::ZERO,
+                        _ => {}
+                    }
                     Aabb {
                         min: c - h,
                         max: c + h,
@@ -615,13 +656,19 @@ mod tests {
                         1 => d.x = 0.0,
                         _ => {}
                     }
-                    let scale = [1.0, 1e-35, 1e35, 1e-3][i % 4];
+                    let scale = [1.0, 1e-35, 1e35, 1e-3, 1e-29, 1e29][i % 6];
                     let d = d * scale;
                     let back = rng.range(0.0, 100.0 * size) / scale;
                     let ray = Ray::new(p - back * d, d);
                     let tmin = if i % 5 == 0 { -1.0 / scale } else { 0.0 };
                     let mut seen = false;
-                    bvh.traverse(&ray, tmin, back * (1.0 + 1e-12) + 1e-300, |key, t| {
+                    // Open-ended rays too: no empty slot may be entered then.
+                    let tmax = if (i / 7) % 3 == 0 {
+                        f64::INFINITY
+                    } else {
+                        back * (1.0 + 1e-12) + 1e-300
+                    };
+                    bvh.traverse(&ray, tmin, tmax, |key, t| {
                         seen |= key as usize == target;
                         t
                     });
