@@ -6,8 +6,8 @@
 # `./test.sh python` runs only the Python part (CI runs the Rust tests itself first).
 set -euo pipefail
 cd "$(dirname "$0")"
-# The release profile without whole-program optimisation (Cargo.toml): the same code, built in
-# a fraction of the time, since every test binary would otherwise get its own LTO link.
+# The release profile without whole-program optimisation (Cargo.toml): the same code, without
+# a whole-program link for each test binary.
 export CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16
 # Also builds target/release/gencyl (for the CLI's integration tests), which the Python tests
 # compare against.

@@ -54,7 +54,8 @@ impl Child {
 
 /// One node of the 4-wide tree: the children's boxes by axis and lane (`min[k][i]` is the
 /// lower bound of child `i` on axis `k`; an empty slot has the box `+inf..+inf`, which no ray
-/// meets: see [`Slabs32`]), and the children. 128 bytes, aligned to 64 so that a node spans two cache lines, not three.
+/// meets: see [`Slabs32`]), and the children. 128 bytes, aligned to 64 so that a node spans
+/// two cache lines, not three.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 struct Node4 {
