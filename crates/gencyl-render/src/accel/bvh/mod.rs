@@ -612,14 +612,22 @@ mod tests {
 
     /// Every ray through a point of a box (inside it, on a face, at a corner) visits that
     /// box's primitive, with the `f32` test (`tmin >= 0`) and the `f64` one (negative `tmin`,
-    /// or directions too small or too large for `f32`), for boxes of every size far from
-    /// the origin and near it.
+    /// or directions too small or too large for `f32`, or entries beyond its range), for
+    /// boxes of every size (points and flat ones too) far from the origin and near it, with
+    /// bounded and open-ended rays.
     #[test]
     fn rays_through_a_box_always_visit_it() {
         let mut rng = Rng::from_seed(21);
-        for (scene, &(offset, size)) in [(0.0, 1.0), (1e4, 1e-6), (-3e7, 1e-3), (1e-3, 1e-9)]
-            .iter()
-            .enumerate()
+        for (scene, &(offset, size)) in [
+            (0.0, 1.0),
+            (1e4, 1e-6),
+            (-3e7, 1e-3),
+            (1e-3, 1e-9),
+            // Entries beyond f32's range from rays of tiny directions (F32_REACH).
+            (0.0, 1e8),
+        ]
+        .iter()
+        .enumerate()
         {
             let boxes: Vec<Aabb> = (0..500)
                 .map(|_| {
