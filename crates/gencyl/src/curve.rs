@@ -54,21 +54,16 @@ impl CubicBezier {
     /// curve (a fiber `1e-150` across squares its derivatives to `1e-300` and their cross
     /// product's square to `1e-600`).
     pub fn derivative_scales(&self) -> [f64; 2] {
-        let m2 = self
-            .second_hodograph()
-            .iter()
-            .fold(0.0f64, |m, h| m.max(h.abs().max_element()));
-        [self.speed_scale(), unit_scale(m2)]
+        [
+            self.speed_scale(),
+            unit_scale(largest_coordinate(&self.second_hodograph())),
+        ]
     }
 
     /// The first of [`Self::derivative_scales`], `1 / max |a'|`, alone.
     #[inline]
     pub fn speed_scale(&self) -> f64 {
-        let m1 = self
-            .hodograph()
-            .iter()
-            .fold(0.0f64, |m, h| m.max(h.abs().max_element()));
-        unit_scale(m1)
+        unit_scale(largest_coordinate(&self.hodograph()))
     }
 
     /// The constant `a'''`.
@@ -240,6 +235,11 @@ fn combine<T: Real, const N: usize>(pts: &[DVec3; N], w: &[T; N]) -> V3<T> {
 /// `1e-11` beyond each end).
 pub const JET_MARGIN: f64 = 1e-10;
 
+/// The largest `|coordinate|` of the points.
+fn largest_coordinate(pts: &[DVec3]) -> f64 {
+    pts.iter().fold(0.0f64, |m, p| m.max(p.abs().max_element()))
+}
+
 /// `1 / m` for a positive finite size `m`, else 1 (a vanishing or unbounded derivative keeps its
 /// scale).
 fn unit_scale(m: f64) -> f64 {
@@ -351,15 +351,9 @@ mod tests {
                 bernstein_dd(&c.second_hodograph(), m),
             ];
             let sizes = [
-                c.points
-                    .iter()
-                    .fold(0.0f64, |s, p| s.max(p.abs().max_element())),
-                c.hodograph()
-                    .iter()
-                    .fold(0.0f64, |s, p| s.max(p.abs().max_element())),
-                c.second_hodograph()
-                    .iter()
-                    .fold(0.0f64, |s, p| s.max(p.abs().max_element())),
+                largest_coordinate(&c.points),
+                largest_coordinate(&c.hodograph()),
+                largest_coordinate(&c.second_hodograph()),
             ];
             for (j, (got, want)) in [a, d1, d2].iter().zip(exact).enumerate() {
                 for (k, x) in [got.x, got.y, got.z].into_iter().enumerate() {
