@@ -147,23 +147,23 @@ impl Scene {
         self.nearest_hit_where(ray, tmin, tmax, scratch, |_| true)
     }
 
-    /// The nearest hit with `tmin < t < tmax` that `accept` takes (a renderer skips the exits
-    /// of fibers it shades as far-field scatterers this way).
+    /// The nearest hit with `tmin < t < tmax`, where on the cylinders for which `exits_stop`
+    /// is false only entries count (`normal . d <= 0`, [`GeneralizedCylinder::intersect_first_entering_with`]):
+    /// a renderer skips the exits of fibers it shades as far-field scatterers this way.
     pub fn nearest_hit_where(
         &self,
         ray: &Ray,
         tmin: f64,
         tmax: f64,
         scratch: &mut Scratch,
-        accept: impl Fn(&SceneHit) -> bool,
+        exits_stop: impl Fn(u32) -> bool,
     ) -> Option<SceneHit> {
         let mut best: Option<SceneHit> = None;
         self.candidates(ray, tmin, tmax, &mut scratch.tested, |i, c, _| {
             // Exclusive upper bound for the cylinder: up to and including the best t, for ties.
             let limit = best.map_or(tmax, |b| b.hit.t.next_up());
-            if let Some(hit) = c.intersect_first_with(ray, tmin, limit, Method::Auto, |&hit| {
-                accept(&SceneHit { hit, object: i })
-            }) && best.is_none_or(|b| hit.t < b.hit.t || (hit.t == b.hit.t && i < b.object))
+            if let Some(hit) = first_hit(c, ray, tmin, limit, exits_stop(i))
+                && best.is_none_or(|b| hit.t < b.hit.t || (hit.t == b.hit.t && i < b.object))
             {
                 best = Some(SceneHit { hit, object: i });
             }
@@ -197,25 +197,39 @@ impl Scene {
         self.any_hit_where(ray, tmin, tmax, scratch, |_| true)
     }
 
-    /// Whether any hit that `accept` takes lies within `tmin < t < tmax`.
+    /// Whether any hit lies within `tmin < t < tmax`, where on the cylinders for which
+    /// `exits_stop` is false only entries count (as [`Self::nearest_hit_where`]).
     pub fn any_hit_where(
         &self,
         ray: &Ray,
         tmin: f64,
         tmax: f64,
         scratch: &mut Scratch,
-        accept: impl Fn(&SceneHit) -> bool,
+        exits_stop: impl Fn(u32) -> bool,
     ) -> bool {
         let mut found = false;
         self.candidates(ray, tmin, tmax, &mut scratch.tested, |i, c, tmax| {
-            found = c
-                .intersect_first_with(ray, tmin, tmax, Method::Auto, |&hit| {
-                    accept(&SceneHit { hit, object: i })
-                })
-                .is_some();
+            found = first_hit(c, ray, tmin, tmax, exits_stop(i)).is_some();
             if found { f64::NEG_INFINITY } else { tmax }
         });
         found
+    }
+}
+
+/// The cylinder's nearest hit with `tmin < t < tmax`, among its entries only unless
+/// `exits_stop`.
+#[inline]
+fn first_hit(
+    c: &GeneralizedCylinder,
+    ray: &Ray,
+    tmin: f64,
+    tmax: f64,
+    exits_stop: bool,
+) -> Option<Hit> {
+    if exits_stop {
+        c.intersect_first_with(ray, tmin, tmax, Method::Auto, |_| true)
+    } else {
+        c.intersect_first_entering_with(ray, tmin, tmax, Method::Auto, |_| true)
     }
 }
 

@@ -140,10 +140,10 @@ impl World {
         solid.chain(lights)
     }
 
-    /// Whether a ray may stop at this cylinder hit: not at the exit of a far-field fiber.
-    fn stops(&self, h: &SceneHit, dir: DVec3) -> bool {
-        !(self.far_field[self.cylinder_materials[h.object as usize] as usize]
-            && h.hit.normal.dot(dir) > 0.0)
+    /// Whether a ray may stop where it leaves this cylinder: not at the exit of a far-field
+    /// fiber.
+    fn exits_stop(&self, object: u32) -> bool {
+        !self.far_field[self.cylinder_materials[object as usize] as usize]
     }
 
     /// The nearest hit with `tmin < t < tmax` (exits of far-field fibers do not count).
@@ -156,7 +156,7 @@ impl World {
     ) -> Option<WorldHit> {
         let mut best: Option<WorldHit> = self
             .scene
-            .nearest_hit_where(ray, tmin, tmax, scratch, |h| self.stops(h, ray.dir))
+            .nearest_hit_where(ray, tmin, tmax, scratch, |i| self.exits_stop(i))
             .map(|SceneHit { hit, object }| WorldHit {
                 t: hit.t,
                 point: hit.point,
@@ -213,7 +213,7 @@ impl World {
                 .any(|(p, _)| p.crossing(ray).is_some_and(hit))
             || self
                 .scene
-                .any_hit_where(ray, tmin, tmax, scratch, |h| self.stops(h, ray.dir))
+                .any_hit_where(ray, tmin, tmax, scratch, |i| self.exits_stop(i))
     }
 
     /// Every boundary crossing of a solid (cylinders and spheres; planes bound nothing)

@@ -199,7 +199,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         method: Method,
         out: &mut Vec<Hit>,
     ) {
-        self.each_hit(ray, tmin, tmax, method, |h| {
+        self.each_hit(ray, tmin, tmax, method, false, |h| {
             out.push(*h);
             false
         });
@@ -217,8 +217,34 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         mut accept: impl FnMut(&Hit) -> bool,
     ) -> Option<Hit> {
         let mut first = None;
-        self.each_hit(ray, tmin, tmax, method, |h| {
+        self.each_hit(ray, tmin, tmax, method, false, |h| {
             let take = accept(h);
+            if take {
+                first = Some(*h);
+            }
+            take
+        });
+        first
+    }
+
+    /// [`Self::intersect_first_with`] among the hits where the ray does not leave the solid
+    /// (`normal . d <= 0`): a renderer's far-field fibers, whose exits do not stop a ray. For
+    /// a round fiber that cannot fold, the Round method knows which crossings are exits before
+    /// it polishes them, and skips them: a root on the far side of its ball (`z = Z + sqrt(D)`)
+    /// is where the ray leaves that ball, and the solid's outward normal there, the ball's,
+    /// points along the ray, by `sqrt(D) / r > 0`. (So a tangent exit, `D` at its rounding
+    /// level, may be dropped where the old filter alone could have kept it by rounding.)
+    pub fn intersect_first_entering_with(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: f64,
+        method: Method,
+        mut accept: impl FnMut(&Hit) -> bool,
+    ) -> Option<Hit> {
+        let mut first = None;
+        self.each_hit(ray, tmin, tmax, method, true, |h| {
+            let take = h.normal.dot(ray.dir) <= 0.0 && accept(h);
             if take {
                 first = Some(*h);
             }
@@ -230,13 +256,15 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// Hands the hits with `tmin < t < tmax` to `each` in order of `t`, until it returns `true`.
     /// A hit is finished only when it is reached: the crossings are found and sorted first, then
     /// each in turn gets its section angle and normal, is merged with a duplicate before it, and
-    /// (where the surface may fold) kept only on the solid's boundary.
+    /// (where the surface may fold) kept only on the solid's boundary. With `skip_exits` the
+    /// Round method's unpolished exits are dropped ([`Self::intersect_first_entering_with`]).
     fn each_hit(
         &self,
         ray: &Ray,
         tmin: f64,
         tmax: f64,
         method: Method,
+        skip_exits: bool,
         mut each: impl FnMut(&Hit) -> bool,
     ) {
         let d = ray.dir;
@@ -268,10 +296,12 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             })
         };
         found.extend(roots.iter().filter_map(side));
-        for (i, w) in deferred.bounds() {
+        // Where the surface is the boundary, a far-side root is an exit.
+        let skip_exits = skip_exits && !self.may_fold();
+        for (i, w, exit) in deferred.bounds() {
             // The cell's crossing is no nearer than `t`: beyond `tmax` it cannot count.
             let t = t0 + w;
-            if t < tmax {
+            if t < tmax && !(skip_exits && exit) {
                 found.push(Crossing {
                     t,
                     hit: Pending::Cell(i),
@@ -1183,6 +1213,80 @@ mod tests {
     /// the full list comes sorted by `t`: curved round fibers (radii 1e-4 to 1e-1 of their
     /// length, tapering), rays through points near the axis from random directions, some
     /// nearly perpendicular to it, some from inside the fiber.
+    /// `intersect_first_entering_with` gives the first entry (`normal . d <= 0`) of the full
+    /// list, and with `accept` refusing the first entries the next one: on round fibers of
+    /// tapering radii 1e-4 to 1e-1 of the length, some 1e4 from the origin, for rays nearly
+    /// (to 1e-14) or exactly perpendicular to the axis, from points on the surface, inside the
+    /// fiber and outside it, in both directions. Most rays meet an exit before their first
+    /// entry or between entries, which the Round method skips unpolished.
+    #[test]
+    fn entering_hits_are_the_entries_of_the_full_list() {
+        let mut rng = Rng(61);
+        let (mut skipped, mut checked) = (0, 0);
+        for case in 0..3000 {
+            let offset = if case % 5 == 0 {
+                DVec3::splat(1e4)
+            } else {
+                DVec3::ZERO
+            };
+            let bezier: [DVec3; 4] = std::array::from_fn(|j| {
+                offset + v3(j as f64 / 3.0, rng.range(-0.3, 0.3), rng.range(-0.3, 0.3))
+            });
+            let r = 10f64.powf(rng.range(-4.0, -1.0));
+            let mut spec = FiberSpec::round(bezier, r);
+            spec.major_radius = [r, r * rng.range(0.5, 1.5)];
+            spec.minor_radius = spec.major_radius;
+            let cyl = spec.build().unwrap();
+            let axis = crate::curve::CubicBezier::new(bezier);
+            let u = rng.range(0.02, 0.98);
+            let v = rng.range(0.0, std::f64::consts::TAU);
+            let t = axis.d1(u).normalize();
+            let d = match case % 4 {
+                0 => t.any_orthonormal_vector(),
+                1 => (t.any_orthonormal_vector() + 10f64.powf(rng.range(-14.0, -2.0)) * t)
+                    .normalize(),
+                _ => rng.unit(),
+            };
+            let d = if case % 2 == 0 { d } else { -d };
+            let o = match case % 3 {
+                // On the surface, as a renderer's spawned rays start.
+                0 => cyl.surface_point(u, v),
+                // Inside.
+                1 => axis.point(u) + rng.unit() * rng.range(0.0, 0.5 * r),
+                _ => axis.point(u) + rng.unit() * rng.range(0.0, 1.2 * r) - 0.5 * d,
+            };
+            let ray = Ray::new(o, d);
+            let mut all = Vec::new();
+            cyl.intersect_all(&ray, 0.0, f64::INFINITY, &mut all);
+            let entries: Vec<&Hit> = all.iter().filter(|h| h.normal.dot(d) <= 0.0).collect();
+            if all.first().is_some_and(|h| h.normal.dot(d) > 0.0) {
+                skipped += 1;
+            }
+            for k in 0..=entries.len() {
+                let mut seen = 0;
+                let got = cyl.intersect_first_entering_with(
+                    &ray,
+                    0.0,
+                    f64::INFINITY,
+                    Method::Auto,
+                    |_| {
+                        seen += 1;
+                        seen > k
+                    },
+                );
+                let want = entries.get(k);
+                assert_eq!(
+                    got.map(|h| (h.t, h.u, h.part)),
+                    want.map(|h| (h.t, h.u, h.part)),
+                    "case {case}: entry {k} of {all:?}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(skipped > 500, "rays meeting an exit first: {skipped}");
+        assert!(checked > 4000, "queries: {checked}");
+    }
+
     #[test]
     fn each_accepted_hit_is_the_next_of_the_full_list() {
         let mut rng = Rng(59);

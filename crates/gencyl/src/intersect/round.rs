@@ -500,9 +500,13 @@ impl Deferred {
         }
     }
 
-    /// The deferred cells: index and lower bound of `w`.
-    pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
-        self.cells.iter().enumerate().map(|(i, c)| (i, c.2))
+    /// The deferred cells: index, lower bound of `w`, and whether the cell's root is on the
+    /// far side of its ball (`z = Z + sqrt(D)`, the `+` branch), where the ray leaves the ball.
+    pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, f64, bool)> + '_ {
+        self.cells
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (i, c.2, c.1.sign > 0.0))
     }
 
     /// Polishes cell `i` into `out` (as [`roots`] would have given its roots).
