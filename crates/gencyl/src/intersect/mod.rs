@@ -229,11 +229,13 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 
     /// [`Self::intersect_first_with`] among the hits where the ray does not leave the solid
     /// (`normal . d <= 0`): a renderer's far-field fibers, whose exits do not stop a ray. For
-    /// a round fiber that cannot fold, the Round method knows which crossings are exits before
-    /// it polishes them, and skips them: a root on the far side of its ball (`z = Z + sqrt(D)`)
-    /// is where the ray leaves that ball, and the solid's outward normal there, the ball's,
-    /// points along the ray, by `sqrt(D) / r > 0`. (So a tangent exit, `D` at its rounding
-    /// level, may be dropped where the old filter alone could have kept it by rounding.)
+    /// a round fiber of constant radius `r` that cannot fold (a tube), the Round method knows
+    /// which crossings are exits before it polishes them, and skips them: a root on the far
+    /// side of its ball (`z = Z + sqrt(D)`) is where the ray leaves that ball, and the tube's
+    /// outward normal there is the ball's, `(p - a) / r`, so `normal . d = sqrt(D) |d| / r > 0`.
+    /// (A tangent exit, `D` at its rounding level, may be dropped where the filter alone could
+    /// have kept it by rounding. A tapering fiber's surface slopes, `normal . d` takes a term
+    /// `-r' (t . d) / |a'|`, and a ray may enter it where it leaves the ball: no skipping there.)
     pub fn intersect_first_entering_with(
         &self,
         ray: &Ray,
@@ -296,8 +298,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             })
         };
         found.extend(roots.iter().filter_map(side));
-        // Where the surface is the boundary, a far-side root is an exit.
-        let skip_exits = skip_exits && !self.may_fold();
+        // On a tube of constant radius that does not fold, a far-side root is an exit.
+        let skip_exits = skip_exits
+            && !self.may_fold()
+            && matches!(self.sweep.uniform_scale(), Some([k0, k1]) if k0 == k1);
         for (i, w, exit) in deferred.bounds() {
             // The cell's crossing is no nearer than `t`: beyond `tmax` it cannot count.
             let t = t0 + w;
@@ -1215,9 +1219,9 @@ mod tests {
     /// nearly perpendicular to it, some from inside the fiber.
     /// `intersect_first_entering_with` gives the first entry (`normal . d <= 0`) of the full
     /// list, and with `accept` refusing the first entries the next one: on round fibers of
-    /// tapering radii 1e-4 to 1e-1 of the length, some 1e4 from the origin, for rays nearly
-    /// (to 1e-14) or exactly perpendicular to the axis, from points on the surface, inside the
-    /// fiber and outside it, in both directions. Most rays meet an exit before their first
+    /// radii 1e-4 to 1e-1 of the length, constant or tapering, some 1e4 from the origin, for
+    /// rays nearly (to 1e-14) or exactly perpendicular to the axis or nearly along it, from
+    /// points on the surface, inside the fiber and outside it, in both directions. Most rays meet an exit before their first
     /// entry or between entries, which the Round method skips unpolished.
     #[test]
     fn entering_hits_are_the_entries_of_the_full_list() {
@@ -1234,17 +1238,22 @@ mod tests {
             });
             let r = 10f64.powf(rng.range(-4.0, -1.0));
             let mut spec = FiberSpec::round(bezier, r);
-            spec.major_radius = [r, r * rng.range(0.5, 1.5)];
+            // Constant radii (hair), and tapers up to threefold (whose surface slopes: a ray
+            // can enter it where it leaves the ball about the axis point).
+            let taper = [1.0, 1.0, rng.range(0.3, 3.0)][case % 3];
+            spec.major_radius = [r, r * taper];
             spec.minor_radius = spec.major_radius;
             let cyl = spec.build().unwrap();
             let axis = crate::curve::CubicBezier::new(bezier);
             let u = rng.range(0.02, 0.98);
             let v = rng.range(0.0, std::f64::consts::TAU);
             let t = axis.d1(u).normalize();
-            let d = match case % 4 {
+            let d = match case % 5 {
                 0 => t.any_orthonormal_vector(),
                 1 => (t.any_orthonormal_vector() + 10f64.powf(rng.range(-14.0, -2.0)) * t)
                     .normalize(),
+                // Nearly along the axis.
+                2 => (t + rng.unit() * rng.range(1e-3, 0.5)).normalize(),
                 _ => rng.unit(),
             };
             let d = if case % 2 == 0 { d } else { -d };
