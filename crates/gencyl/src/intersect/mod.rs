@@ -302,10 +302,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let skip_exits = skip_exits
             && !self.may_fold()
             && matches!(self.sweep.uniform_scale(), Some([k0, k1]) if k0 == k1);
-        for (i, w, exit) in deferred.bounds() {
-            // The cell's crossing is no nearer than `t`: beyond `tmax` it cannot count.
+        for (i, [w, w_upper], exit) in deferred.bounds() {
+            // The cell's crossing is no nearer than `t`: beyond `tmax` it cannot count; nor can
+            // it where it is no farther than `tmin` (a ray leaving a fiber's surface, behind).
             let t = t0 + w;
-            if t < tmax && !(skip_exits && exit) {
+            if t < tmax && t0 + w_upper > tmin && !(skip_exits && exit) {
                 found.push(Crossing {
                     t,
                     hit: Pending::Cell(i),

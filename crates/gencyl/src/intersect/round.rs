@@ -444,6 +444,16 @@ impl RootCell {
         let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z.abs() + r_max);
         (low - margin) / len
     }
+
+    /// An upper bound of the cell's `w`, as [`Self::w_bound`] bounds it from below: `Z` is at
+    /// most its larger end value on the cell, and the crossing lies `sqrt(D) <= r_max` beyond
+    /// it on the far side of the ball (`+`), not beyond it on the near side (`-`).
+    fn w_upper(&self, k: &Polys, r_max: f64, len: f64) -> f64 {
+        let z = k.z.eval(self.s0).max(k.z.eval(self.s1));
+        let high = if self.sign > 0.0 { z + r_max } else { z };
+        let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z.abs() + r_max);
+        (high + margin) / len
+    }
 }
 
 /// The roots of a cell, as `(s, sign)`, into `out`: its own root where [`RootCell::polish`]
@@ -482,7 +492,7 @@ struct DeferredRange {
 /// crossing it takes, not the exit behind it.
 pub(crate) struct Deferred {
     ranges: ArrayVec<DeferredRange, DEFERRED_RANGES>,
-    cells: ArrayVec<(usize, RootCell, f64), MAX_DEFERRED>,
+    cells: ArrayVec<(usize, RootCell, [f64; 2]), MAX_DEFERRED>,
 }
 
 /// Most cells a [`Deferred`] keeps.
@@ -500,9 +510,10 @@ impl Deferred {
         }
     }
 
-    /// The deferred cells: index, lower bound of `w`, and whether the cell's root is on the
-    /// far side of its ball (`z = Z + sqrt(D)`, the `+` branch), where the ray leaves the ball.
-    pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, f64, bool)> + '_ {
+    /// The deferred cells: index, lower and upper bound of `w`, and whether the cell's root is
+    /// on the far side of its ball (`z = Z + sqrt(D)`, the `+` branch), where the ray leaves
+    /// the ball.
+    pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, [f64; 2], bool)> + '_ {
         self.cells
             .iter()
             .enumerate()
@@ -558,8 +569,8 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         let range = deferred.ranges.len();
         let r_max = r[0].abs().max(r[1].abs());
         for cell in cells {
-            let bound = cell.w_bound(&k, r_max, len);
-            deferred.cells.push((range, cell, bound));
+            let bounds = [cell.w_bound(&k, r_max, len), cell.w_upper(&k, r_max, len)];
+            deferred.cells.push((range, cell, bounds));
         }
         deferred.ranges.push(DeferredRange { k, u: (u0, u1) });
         return;
