@@ -148,8 +148,9 @@ impl Scene {
     }
 
     /// The nearest hit with `tmin < t < tmax`, where on the cylinders for which `exits_stop`
-    /// is false only entries count (`normal . d <= 0`, [`GeneralizedCylinder::intersect_first_entering_with`]):
-    /// a renderer skips the exits of fibers it shades as far-field scatterers this way.
+    /// is false only entries count (`normal . d <= 0`,
+    /// [`GeneralizedCylinder::intersect_first_entering_with`]): a renderer skips the exits of
+    /// fibers it shades as far-field scatterers this way.
     pub fn nearest_hit_where(
         &self,
         ray: &Ray,

@@ -1213,17 +1213,13 @@ mod tests {
         }
     }
 
-    /// A query that takes the `k`-th hit gets the `k`-th of the full list, though the Round
-    /// method leaves its roots unpolished until a query reaches them ([`round::Deferred`]), and
-    /// the full list comes sorted by `t`: curved round fibers (radii 1e-4 to 1e-1 of their
-    /// length, tapering), rays through points near the axis from random directions, some
-    /// nearly perpendicular to it, some from inside the fiber.
     /// `intersect_first_entering_with` gives the first entry (`normal . d <= 0`) of the full
     /// list, and with `accept` refusing the first entries the next one: on round fibers of
     /// radii 1e-4 to 1e-1 of the length, constant or tapering, some 1e4 from the origin, for
     /// rays nearly (to 1e-14) or exactly perpendicular to the axis or nearly along it, from
-    /// points on the surface, inside the fiber and outside it, in both directions. Most rays meet an exit before their first
-    /// entry or between entries, which the Round method skips unpolished.
+    /// points on the surface, inside the fiber and outside it, in both directions. Many rays
+    /// meet an exit before their first entry or between entries, which the Round method skips
+    /// unpolished on the constant-radius fibers.
     #[test]
     fn entering_hits_are_the_entries_of_the_full_list() {
         let mut rng = Rng(61);
@@ -1297,6 +1293,11 @@ mod tests {
         assert!(checked > 4000, "queries: {checked}");
     }
 
+    /// A query that takes the `k`-th hit gets the `k`-th of the full list, though the Round
+    /// method leaves its roots unpolished until a query reaches them ([`round::Deferred`]), and
+    /// the full list comes sorted by `t`: curved round fibers (radii 1e-4 to 1e-1 of their
+    /// length, tapering), rays through points near the axis from random directions, some
+    /// nearly perpendicular to it, some from inside the fiber.
     #[test]
     fn each_accepted_hit_is_the_next_of_the_full_list() {
         let mut rng = Rng(59);
