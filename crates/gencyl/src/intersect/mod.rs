@@ -214,17 +214,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         tmin: f64,
         tmax: f64,
         method: Method,
-        mut accept: impl FnMut(&Hit) -> bool,
+        accept: impl FnMut(&Hit) -> bool,
     ) -> Option<Hit> {
-        let mut first = None;
-        self.each_hit(ray, tmin, tmax, method, false, |h| {
-            let take = accept(h);
-            if take {
-                first = Some(*h);
-            }
-            take
-        });
-        first
+        self.first_accepted(ray, tmin, tmax, method, false, accept)
     }
 
     /// [`Self::intersect_first_with`] among the hits where the ray does not leave the solid
@@ -242,11 +234,25 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         tmin: f64,
         tmax: f64,
         method: Method,
+        accept: impl FnMut(&Hit) -> bool,
+    ) -> Option<Hit> {
+        self.first_accepted(ray, tmin, tmax, method, true, accept)
+    }
+
+    /// The first hit that `accept` takes, among the entries only when `entering` (then
+    /// [`Self::each_hit`] also skips the exits it can tell unpolished).
+    fn first_accepted(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: f64,
+        method: Method,
+        entering: bool,
         mut accept: impl FnMut(&Hit) -> bool,
     ) -> Option<Hit> {
         let mut first = None;
-        self.each_hit(ray, tmin, tmax, method, true, |h| {
-            let take = h.normal.dot(ray.dir) <= 0.0 && accept(h);
+        self.each_hit(ray, tmin, tmax, method, entering, |h| {
+            let take = (!entering || h.normal.dot(ray.dir) <= 0.0) && accept(h);
             if take {
                 first = Some(*h);
             }

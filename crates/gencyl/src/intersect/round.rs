@@ -433,26 +433,21 @@ impl RootCell {
         (converged && k.disc.eval(r) > k.err_disc || positive_disc(k, s0, s1)).then_some(r)
     }
 
-    /// A lower bound of the ray parameter `w` of the cell's crossing (whose `z = Z ± sqrt(D)`
-    /// along `d / |d|`): `Z` is monotone on the range (`Z'` keeps one sign), so it is at least
-    /// its smaller end value on the cell, and `0 <= sqrt(D) <= r_max`. The margin covers the
-    /// rounding of `Z`, and a root that rounding puts on the other branch where both meet
-    /// (`D` at its rounding level).
-    fn w_bound(&self, k: &Polys, r_max: f64, len: f64) -> f64 {
-        let z = k.z.eval(self.s0).min(k.z.eval(self.s1));
-        let low = if self.sign < 0.0 { z - r_max } else { z };
-        let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z.abs() + r_max);
-        (low - margin) / len
-    }
-
-    /// An upper bound of the cell's `w`, as [`Self::w_bound`] bounds it from below: `Z` is at
-    /// most its larger end value on the cell, and the crossing lies `sqrt(D) <= r_max` beyond
-    /// it on the far side of the ball (`+`), not beyond it on the near side (`-`).
-    fn w_upper(&self, k: &Polys, r_max: f64, len: f64) -> f64 {
-        let z = k.z.eval(self.s0).max(k.z.eval(self.s1));
-        let high = if self.sign > 0.0 { z + r_max } else { z };
-        let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z.abs() + r_max);
-        (high + margin) / len
+    /// Lower and upper bounds of the ray parameter `w` of the cell's crossing (whose
+    /// `z = Z ± sqrt(D)` along `d / |d|`): `Z` is monotone on the range (`Z'` keeps one sign), so
+    /// it lies between its end values on the cell, and `0 <= sqrt(D) <= r_max`. The margins
+    /// cover the rounding of `Z`, and a root that rounding puts on the other branch where both
+    /// meet (`D` at its rounding level).
+    fn w_range(&self, k: &Polys, r_max: f64, len: f64) -> [f64; 2] {
+        let (za, zb) = (k.z.eval(self.s0), k.z.eval(self.s1));
+        let (z_lo, z_hi) = (za.min(zb), za.max(zb));
+        let (low, high) = if self.sign < 0.0 {
+            (z_lo - r_max, z_hi)
+        } else {
+            (z_lo, z_hi + r_max)
+        };
+        let margin = |z: f64| 4.0 * k.err_disc.sqrt() + 1e-9 * (z.abs() + r_max);
+        [(low - margin(z_lo)) / len, (high + margin(z_hi)) / len]
     }
 }
 
@@ -488,7 +483,7 @@ struct DeferredRange {
 }
 
 /// Root cells of the Round method whose polishing waits until a query reaches them, with a
-/// lower bound of each one's `w` ([`RootCell::w_bound`]): a nearest-hit query polishes the
+/// lower bound of each one's `w` ([`RootCell::w_range`]): a nearest-hit query polishes the
 /// crossing it takes, not the exit behind it.
 pub(crate) struct Deferred {
     ranges: ArrayVec<DeferredRange, DEFERRED_RANGES>,
@@ -569,7 +564,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         let range = deferred.ranges.len();
         let r_max = r[0].abs().max(r[1].abs());
         for cell in cells {
-            let bounds = [cell.w_bound(&k, r_max, len), cell.w_upper(&k, r_max, len)];
+            let bounds = cell.w_range(&k, r_max, len);
             deferred.cells.push((range, cell, bounds));
         }
         deferred.ranges.push(DeferredRange { k, u: (u0, u1) });
