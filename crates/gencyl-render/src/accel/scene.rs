@@ -210,7 +210,7 @@ impl Scene {
     ) -> bool {
         let mut found = false;
         self.candidates(ray, tmin, tmax, &mut scratch.tested, |i, c, tmax| {
-            found = first_hit(c, ray, tmin, tmax, exits_stop(i)).is_some();
+            found = c.any_hit(ray, tmin, tmax, !exits_stop(i));
             if found { f64::NEG_INFINITY } else { tmax }
         });
         found

@@ -199,7 +199,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         method: Method,
         out: &mut Vec<Hit>,
     ) {
-        self.each_hit(ray, tmin, tmax, method, false, |h| {
+        self.each_hit(ray, tmin, tmax, method, false, false, |h| {
             out.push(*h);
             false
         });
@@ -222,12 +222,13 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// [`Self::intersect_first_with`] among the hits where the ray does not leave the solid
     /// (`normal . d <= 0`): a renderer's far-field fibers, whose exits do not stop a ray. For
     /// a round fiber of constant radius `r` that cannot fold (a tube), the Round method knows
-    /// which crossings are exits before it polishes them, and skips them: a root on the far
-    /// side of its ball (`z = Z + sqrt(D)`) is where the ray leaves that ball, and the tube's
-    /// outward normal there is the ball's, `(p - a) / r`, so `normal . d = sqrt(D) |d| / r > 0`.
-    /// (A tangent exit, `D` at its rounding level, may be dropped where the filter alone could
-    /// have kept it by rounding. A tapering fiber's surface slopes, `normal . d` takes a term
-    /// `-r' (t . d) / |a'|`, and a ray may enter it where it leaves the ball: no skipping there.)
+    /// which crossings are exits before it polishes them, and skips them: a root certainly on
+    /// the far side of its ball (`z = Z + sqrt(D)`, [`round::CellCrossing::Exit`]) is where the
+    /// ray leaves that ball, and the tube's outward normal there is the ball's, `(p - a) / r`,
+    /// so `normal . d = sqrt(D) |d| / r > 0`. (A nearly tangent exit may be dropped where the
+    /// filter alone could have kept it by rounding. A tapering fiber's surface slopes, `normal . d`
+    /// takes a term `-r' (t . d) / |a'|`, and a ray may enter it where it leaves the ball: no
+    /// skipping there.)
     pub fn intersect_first_entering_with(
         &self,
         ray: &Ray,
@@ -237,6 +238,24 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         accept: impl FnMut(&Hit) -> bool,
     ) -> Option<Hit> {
         self.first_accepted(ray, tmin, tmax, method, true, accept)
+    }
+
+    /// Whether the ray has a hit with `tmin < t < tmax`, among the entries only (`normal . d
+    /// <= 0`) when `entering`: whether [`Self::intersect_first_with`] (or
+    /// [`Self::intersect_first_entering_with`]) with `Method::Auto` would find one, as a
+    /// renderer's shadow rays ask. The hit need not be finished: a Round root cell (which
+    /// certainly holds a crossing of the side surface, on the branch it names) whose `w` bounds
+    /// lie inside `(tmin, tmax)` answers unpolished, where the surface cannot fold (else the
+    /// crossing may lie inside the solid) and, when `entering`, only on a tube of constant
+    /// radius and the `-` branch (where the ball's entry is the tube's: see
+    /// [`Self::intersect_first_entering_with`]).
+    pub fn any_hit(&self, ray: &Ray, tmin: f64, tmax: f64, entering: bool) -> bool {
+        let mut found = false;
+        let certain = self.each_hit(ray, tmin, tmax, Method::Auto, entering, true, |h| {
+            found = !entering || h.normal.dot(ray.dir) <= 0.0;
+            found
+        });
+        certain || found
     }
 
     /// The first hit that `accept` takes, among the entries only when `entering` (then
@@ -251,7 +270,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         mut accept: impl FnMut(&Hit) -> bool,
     ) -> Option<Hit> {
         let mut first = None;
-        self.each_hit(ray, tmin, tmax, method, entering, |h| {
+        self.each_hit(ray, tmin, tmax, method, entering, false, |h| {
             let take = (!entering || h.normal.dot(ray.dir) <= 0.0) && accept(h);
             if take {
                 first = Some(*h);
@@ -266,6 +285,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// each in turn gets its section angle and normal, is merged with a duplicate before it, and
     /// (where the surface may fold) kept only on the solid's boundary. With `skip_exits` the
     /// Round method's unpolished exits are dropped ([`Self::intersect_first_entering_with`]).
+    /// With `certain_stops`, a root cell within the range holding a crossing that `each` would
+    /// take (any crossing, or an entry with `skip_exits`) ends the walk unpolished, and the
+    /// answer is `true` ([`Self::any_hit`]); otherwise the answer is `false`.
+    #[allow(clippy::too_many_arguments)]
     fn each_hit(
         &self,
         ray: &Ray,
@@ -273,18 +296,19 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         tmax: f64,
         method: Method,
         skip_exits: bool,
+        certain_stops: bool,
         mut each: impl FnMut(&Hit) -> bool,
-    ) {
+    ) -> bool {
         let d = ray.dir;
         if !(d.length_squared() > 0.0) || !d.is_finite() || !ray.origin.is_finite() {
-            return;
+            return false;
         }
         let bounds = self.bounds();
         let Some((b0, b1)) = bounds.ray_range(ray) else {
-            return;
+            return false;
         };
         if b1 <= tmin || b0 >= tmax {
-            return;
+            return false;
         }
         // Work near the fiber: o is the ray's point closest to the box centre, t = t0 + w.
         let o_local = ray.origin - self.origin;
@@ -305,13 +329,26 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         };
         found.extend(roots.iter().filter_map(side));
         // On a tube of constant radius that does not fold, a far-side root is an exit.
-        let skip_exits = skip_exits
-            && !self.may_fold()
-            && matches!(self.sweep.uniform_scale(), Some([k0, k1]) if k0 == k1);
-        for (i, [w, w_upper], exit) in deferred.bounds() {
+        let tube =
+            !self.may_fold() && matches!(self.sweep.uniform_scale(), Some([k0, k1]) if k0 == k1);
+        // Which cells `certain_stops` may answer by: those certain to hold a crossing, on a
+        // surface that cannot fold; only entries (the `-` branch) of a tube when the query
+        // wants entries.
+        let certain_counts = |holds: round::CellCrossing| {
+            certain_stops
+                && !self.may_fold()
+                && match holds {
+                    round::CellCrossing::Entry => !skip_exits || tube,
+                    round::CellCrossing::Exit => !skip_exits,
+                    round::CellCrossing::Unsure => false,
+                }
+        };
+        let skip_exits = skip_exits && tube;
+        for (i, [w, w_upper], holds) in deferred.bounds() {
             // The cell's crossing is no nearer than `t`: beyond `tmax` it cannot count; nor can
             // it where it is no farther than `tmin` (a ray leaving a fiber's surface, behind).
             let t = t0 + w;
+            let exit = holds == round::CellCrossing::Exit;
             if t < tmax && t0 + w_upper > tmin && !(skip_exits && exit) {
                 found.push(Crossing {
                     t,
@@ -398,6 +435,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 Pending::Done(h) => h,
                 Pending::Side(r) => self.finish_side(ray, (o, d), c.t, r, round),
                 Pending::Cell(i) => {
+                    let ([w, w_upper], holds) = deferred.cell(i);
+                    if certain_counts(holds) && t0 + w > tmin && t0 + w_upper < tmax {
+                        return true;
+                    }
                     // Reached: polished, and its roots take the cell's place among the rest (no
                     // nearer than the bound it was sorted by).
                     next -= 1;
@@ -424,9 +465,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 h
             };
             if each(&h) {
-                return;
+                return false;
             }
         }
+        false
     }
 
     /// The side hit of the root `r` at `t`: its section angle and normal. `round` is a round
@@ -1219,6 +1261,51 @@ mod tests {
         }
     }
 
+    /// Case `case` of the entries and any-hit tests: a round fiber of radius `r` from 1e-4 to
+    /// 1e-1 of its length, of constant radius or tapering up to threefold, every fifth at 1e4,
+    /// and a ray exactly or nearly (to 1e-14) perpendicular to its axis, nearly along it or
+    /// random, from a point on the surface, inside the fiber or outside it. Returns the fiber,
+    /// the ray and `r`.
+    fn fiber_and_ray(rng: &mut Rng, case: usize) -> (Cyl, Ray, f64) {
+        let offset = if case % 5 == 0 {
+            DVec3::splat(1e4)
+        } else {
+            DVec3::ZERO
+        };
+        let bezier: [DVec3; 4] = std::array::from_fn(|j| {
+            offset + v3(j as f64 / 3.0, rng.range(-0.3, 0.3), rng.range(-0.3, 0.3))
+        });
+        let r = 10f64.powf(rng.range(-4.0, -1.0));
+        let mut spec = FiberSpec::round(bezier, r);
+        // Constant radii (hair), and tapers up to threefold (whose surface slopes: a ray
+        // can enter it where it leaves the ball about the axis point).
+        let taper = [1.0, 1.0, rng.range(0.3, 3.0)][case % 3];
+        spec.major_radius = [r, r * taper];
+        spec.minor_radius = spec.major_radius;
+        let cyl = spec.build().unwrap();
+        let axis = crate::curve::CubicBezier::new(bezier);
+        let u = rng.range(0.02, 0.98);
+        let v = rng.range(0.0, std::f64::consts::TAU);
+        let t = axis.d1(u).normalize();
+        let d = match case % 5 {
+            0 => t.any_orthonormal_vector(),
+            1 => (t.any_orthonormal_vector() + 10f64.powf(rng.range(-14.0, -2.0)) * t).normalize(),
+            // Nearly along the axis.
+            2 => (t + rng.unit() * rng.range(1e-3, 0.5)).normalize(),
+            _ => rng.unit(),
+        };
+        let d = if case % 2 == 0 { d } else { -d };
+        let o = match case % 3 {
+            // On the surface, as a renderer's spawned rays start.
+            0 => cyl.surface_point(u, v),
+            // Inside.
+            1 => axis.point(u) + rng.unit() * rng.range(0.0, 0.5 * r),
+            _ => axis.point(u) + rng.unit() * rng.range(0.0, 1.2 * r) - 0.5 * d,
+        };
+        let ray = Ray::new(o, d);
+        (cyl, ray, r)
+    }
+
     /// `intersect_first_entering_with` gives the first entry (`normal . d <= 0`) of the full
     /// list, and with `accept` refusing the first entries the next one: on round fibers of
     /// radii 1e-4 to 1e-1 of the length, constant or tapering, some 1e4 from the origin, for
@@ -1231,43 +1318,8 @@ mod tests {
         let mut rng = Rng(61);
         let (mut skipped, mut checked) = (0, 0);
         for case in 0..3000 {
-            let offset = if case % 5 == 0 {
-                DVec3::splat(1e4)
-            } else {
-                DVec3::ZERO
-            };
-            let bezier: [DVec3; 4] = std::array::from_fn(|j| {
-                offset + v3(j as f64 / 3.0, rng.range(-0.3, 0.3), rng.range(-0.3, 0.3))
-            });
-            let r = 10f64.powf(rng.range(-4.0, -1.0));
-            let mut spec = FiberSpec::round(bezier, r);
-            // Constant radii (hair), and tapers up to threefold (whose surface slopes: a ray
-            // can enter it where it leaves the ball about the axis point).
-            let taper = [1.0, 1.0, rng.range(0.3, 3.0)][case % 3];
-            spec.major_radius = [r, r * taper];
-            spec.minor_radius = spec.major_radius;
-            let cyl = spec.build().unwrap();
-            let axis = crate::curve::CubicBezier::new(bezier);
-            let u = rng.range(0.02, 0.98);
-            let v = rng.range(0.0, std::f64::consts::TAU);
-            let t = axis.d1(u).normalize();
-            let d = match case % 5 {
-                0 => t.any_orthonormal_vector(),
-                1 => (t.any_orthonormal_vector() + 10f64.powf(rng.range(-14.0, -2.0)) * t)
-                    .normalize(),
-                // Nearly along the axis.
-                2 => (t + rng.unit() * rng.range(1e-3, 0.5)).normalize(),
-                _ => rng.unit(),
-            };
-            let d = if case % 2 == 0 { d } else { -d };
-            let o = match case % 3 {
-                // On the surface, as a renderer's spawned rays start.
-                0 => cyl.surface_point(u, v),
-                // Inside.
-                1 => axis.point(u) + rng.unit() * rng.range(0.0, 0.5 * r),
-                _ => axis.point(u) + rng.unit() * rng.range(0.0, 1.2 * r) - 0.5 * d,
-            };
-            let ray = Ray::new(o, d);
+            let (cyl, ray, _) = fiber_and_ray(&mut rng, case);
+            let d = ray.dir;
             let mut all = Vec::new();
             cyl.intersect_all(&ray, 0.0, f64::INFINITY, &mut all);
             let entries: Vec<&Hit> = all.iter().filter(|h| h.normal.dot(d) <= 0.0).collect();
@@ -1297,6 +1349,67 @@ mod tests {
         }
         assert!(skipped > 500, "rays meeting an exit first: {skipped}");
         assert!(checked > 4000, "queries: {checked}");
+    }
+
+    /// `any_hit` answers as the full hit list does, though it may stop at a Round cell it has
+    /// not polished: for fibers and rays of every kind of [`fiber_and_ray`] and windows
+    /// `(tmin, tmax)` that end just before, just after and between the hits (by 1e-9 of the
+    /// radius up to the radius), whether some hit (entry, when `entering`) of the list lies
+    /// inside, and the nearest hit in the window is the list's first there. Windows that hold
+    /// only an exit must answer `false` to an entries query.
+    #[test]
+    fn any_hit_agrees_with_the_full_list() {
+        let mut rng = Rng(67);
+        let (mut answered, mut yes, mut exits_only) = (0, 0, 0);
+        for case in 0..3000 {
+            let (cyl, ray, r) = fiber_and_ray(&mut rng, case);
+            let d = ray.dir;
+            let mut all = Vec::new();
+            cyl.intersect_all(&ray, 0.0, f64::INFINITY, &mut all);
+            // Window ends: the origin, infinity, and near every hit on both sides.
+            let mut ends = vec![0.0, f64::INFINITY];
+            for h in &all {
+                let gap = r * 10f64.powf(rng.range(-9.0, 0.0));
+                ends.extend([h.t - gap, h.t + gap, h.t]);
+            }
+            for (a, &tmin) in ends.iter().enumerate() {
+                for &tmax in &ends[a..] {
+                    let (tmin, tmax) = (tmin.min(tmax).max(0.0), tmin.max(tmax));
+                    for entering in [false, true] {
+                        let inside = |h: &&Hit| {
+                            h.t > tmin && h.t < tmax && (!entering || h.normal.dot(d) <= 0.0)
+                        };
+                        let want = all.iter().any(|h| inside(&h));
+                        if entering && !want && all.iter().any(|h| h.t > tmin && h.t < tmax) {
+                            exits_only += 1;
+                        }
+                        assert_eq!(
+                            cyl.any_hit(&ray, tmin, tmax, entering),
+                            want,
+                            "case {case}: ({tmin}, {tmax}) entering {entering}: {all:?}"
+                        );
+                        if !entering {
+                            let first = all.iter().find(|h| h.t > tmin && h.t < tmax);
+                            assert_eq!(
+                                cyl.intersect(&ray, tmin, tmax).map(|h| (h.t, h.u, h.part)),
+                                first.map(|h| (h.t, h.u, h.part)),
+                                "case {case}: nearest in ({tmin}, {tmax}): {all:?}"
+                            );
+                        }
+                        answered += 1;
+                        yes += usize::from(want);
+                    }
+                }
+            }
+        }
+        assert!(
+            answered > 50_000 && yes > 20_000,
+            "{answered} queries, {yes} hit"
+        );
+        assert!(
+            exits_only > 2_000,
+            "windows holding only exits: {exits_only}"
+        );
     }
 
     /// A query that takes the `k`-th hit gets the `k`-th of the full list, though the Round

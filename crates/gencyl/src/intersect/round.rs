@@ -69,6 +69,11 @@ struct Polys {
     err_disc: f64,
     err_p: f64,
     err_z: f64,
+    /// Whether the radius is constant and `P' > 0` on the range (its coefficients beyond ten
+    /// times `P`'s rounding bound, as a derivative's differences may take): the squared
+    /// distance `X^2 + Y^2` from the ray to the axis is then strictly convex, and `D = r^2 -
+    /// X^2 - Y^2` is largest where `P` (half its slope) vanishes.
+    distance_convex: bool,
 }
 
 /// `[lo, hi]` of a polynomial on a cell, widened by its rounding bound.
@@ -97,17 +102,20 @@ impl Polys {
         let err_disc = scale(xx.magnitude() + yy.magnitude() + r2.magnitude());
         let err_p = scale(px.magnitude() + py.magnitude());
         let err_z = scale(z_s.magnitude());
+        let p_s: B5 = p.derivative();
+        let distance_convex = r[0] == r[1] && bounds(&p_s, 10.0 * err_p).lo > 0.0;
         Polys {
             z,
             disc_s: disc.derivative(),
             disc,
-            p_s: p.derivative(),
+            p_s,
             p,
             z_ss: z_s.derivative(),
             z_s,
             err_disc,
             err_p,
             err_z,
+            distance_convex,
         }
     }
 
@@ -327,14 +335,10 @@ impl Product {
                     continue;
                 }
                 if changes == 1 {
-                    match RootCell::of(k, s0, s1) {
-                        Ok(cell) => {
-                            found.try_push(cell).ok()?;
-                            continue;
-                        }
-                        Err(Undecided::GiveUp) => return None,
-                        // A narrower cell about the root settles it.
-                        Err(Undecided::Split) => {}
+                    // Otherwise a narrower cell about the root settles it.
+                    if let Some(cell) = RootCell::of(k, s0, s1, c.0[0] < 0.0) {
+                        found.try_push(cell).ok()?;
+                        continue;
                     }
                 }
                 if stack.is_full() {
@@ -372,8 +376,13 @@ fn settle_all(k: &Polys, cells: &[RootCell], out: &mut ArrayVec<(f64, f64), 16>)
     cells.iter().try_for_each(|cell| settle(k, cell, out))
 }
 
-/// A cell `[s0, s1]` where `G` has exactly one (simple) root `r`, and the branch `H_sign` that
-/// vanishes there: `fa` at `s0` and `fb` at `s1`, of opposite signs.
+/// A cell `[s0, s1]` where `G` has exactly one (simple) root `r` (certified by
+/// [`Product::cells`]), and the branch `H_sign` that vanishes there: `fa` at `s0` and `fb` at
+/// `s1`, of opposite signs. Where `certain`, the branch is certified and `D(r) > 0`
+/// ([`RootCell::certified_branch`]): the cell certainly holds a crossing of the side surface
+/// (the point of the circle of radius `r(s)` in the normal plane at `s` where the ray crosses
+/// it), where the ray enters the ball about the axis point on the `-` branch and leaves it on
+/// the `+` branch.
 #[derive(Clone, Copy, Debug)]
 struct RootCell {
     s0: f64,
@@ -381,39 +390,74 @@ struct RootCell {
     sign: f64,
     fa: f64,
     fb: f64,
-}
-
-/// Why [`RootCell::of`] names no branch.
-enum Undecided {
-    /// Rounding at an end: a narrower cell settles it.
-    Split,
-    /// The product method cannot settle the range.
-    GiveUp,
+    certain: bool,
 }
 
 impl RootCell {
-    /// The branch of the root of a cell where `G` has exactly one.
+    /// The root cell of `[s0, s1]`, where `G` has exactly one root; `g_rises` when `G < 0` at
+    /// `s0` (its end values' signs are certified). `None` where a narrower cell is needed.
     ///
-    /// On the side of `r` where `G < 0`, `D > 0` and the branches have opposite signs
-    /// (`G = H+ H-`); where `G > 0` they have the same sign, also where `D < 0` (both read `-P`
-    /// there, `sqrt(D)` clamped at 0). So exactly one branch changes sign between the cell's
-    /// ends; where rounding at an end hides which, only a cell with `D > 0` throughout is
-    /// decided without it (the product method gives up there, as it did before polishing).
-    fn of(k: &Polys, s0: f64, s1: f64) -> Result<Self, Undecided> {
+    /// The branch is the certified one where [`Self::certified_branch`] gives it, else the one
+    /// whose end values (in `f64`) change sign: where `G < 0` the branches have opposite signs,
+    /// where `G > 0` the same sign (`|P| > |Z'| sqrt(D)`), also where `D < 0` (both read `-P`,
+    /// `sqrt(D)` clamped at 0), so the branch of `r` changes sign there and the other does not,
+    /// unless `P` vanishes an odd number of times where `D < 0` in the cell, which flips both.
+    /// Such a guess may be wrong: its polish then fails to verify and the cell is isolated
+    /// again ([`settle`]), and its bounds ([`Self::w_range`]) hold on either branch. The branch's
+    /// end values must also differ in sign (the polish's bracket): where rounding hides that,
+    /// a narrower cell settles it.
+    fn of(k: &Polys, s0: f64, s1: f64, g_rises: bool) -> Option<Self> {
         let ((q0, c0), (q1, c1)) = (k.parts(s0), k.parts(s1));
         let (m0, m1, p0, p1) = (q0 - c0, q1 - c1, q0 + c0, q1 + c1);
-        let (sign, fa, fb) = match (m0 * m1 < 0.0, p0 * p1 < 0.0) {
-            (true, false) => (-1.0, m0, m1),
-            (false, true) => (1.0, p0, p1),
-            _ if positive_disc(k, s0, s1) => return Err(Undecided::GiveUp),
-            _ => return Err(Undecided::Split),
+        // `-P` at the end where `G > 0`.
+        let q_f = if g_rises { q1 } else { q0 };
+        let certified = Self::certified_branch(k, s0, s1, -q_f);
+        let sign = match (certified, m0 * m1 < 0.0, p0 * p1 < 0.0) {
+            (Some(sign), _, _) => sign,
+            (None, true, false) => -1.0,
+            (None, false, true) => 1.0,
+            _ => return None,
         };
-        Ok(RootCell {
+        let (fa, fb) = if sign < 0.0 { (m0, m1) } else { (p0, p1) };
+        if !(fa * fb < 0.0) {
+            return None;
+        }
+        Some(RootCell {
             s0,
             s1,
             sign,
             fa,
             fb,
+            certain: certified.is_some(),
+        })
+    }
+
+    /// The branch of the cell's root `r`, where it can be certified; `p` is `P(f)` in `f64`.
+    ///
+    /// At `r`, if `P(r) != 0`, `D = P^2 / Z'^2 > 0`, and the branch `H± = -P ± Z' sqrt(D)` that
+    /// vanishes is the one with `P = ± Z' sqrt(D)`: `+` where `P(r)` has the sign of `Z'` (which
+    /// keeps one sign on the range), `-` where it has the other. Between `r` and the end `f`
+    /// where `G > 0`, `G > 0`, so `P` vanishes only where `D < 0` (there `G = -Z'^2 D`). So
+    /// `P(r)` has the sign of `P(f)` (certified by its rounding bound) when `P` has no zero
+    /// (or an even number) where `D < 0` in the cell, which holds where any of these does:
+    /// - `P`'s coefficients on the cell keep one sign beyond their rounding bound;
+    /// - `D > 0` on the whole cell ([`positive_disc`]);
+    /// - [`Polys::distance_convex`]: `P` has at most one zero, where the squared distance is
+    ///   least and `D` largest, so `D >= D(r) > 0` there.
+    fn certified_branch(k: &Polys, s0: f64, s1: f64, p: f64) -> Option<f64> {
+        if p.abs() <= 2.0 * k.err_p {
+            return None;
+        }
+        let no_flip = k.distance_convex
+            || bounds(&k.p.restrict(s0, s1), k.err_p).excludes_zero()
+            || positive_disc(k, s0, s1);
+        if !no_flip {
+            return None;
+        }
+        Some(if (p > 0.0) == (k.z_s.0[0] > 0.0) {
+            1.0
+        } else {
+            -1.0
         })
     }
 
@@ -435,16 +479,17 @@ impl RootCell {
 
     /// Lower and upper bounds of the ray parameter `w` of the cell's crossing (whose
     /// `z = Z ± sqrt(D)` along `d / |d|`): `Z` is monotone on the range (`Z'` keeps one sign), so
-    /// it lies between its end values on the cell, and `0 <= sqrt(D) <= r_max`. The margins
+    /// it lies between its end values on the cell, and `0 <= sqrt(D) <= r_max` (on the branch
+    /// named where it is certain, on either otherwise). The margins
     /// cover the rounding of `Z`, and a root that rounding puts on the other branch where both
     /// meet (`D` at its rounding level).
     fn w_range(&self, k: &Polys, r_max: f64, len: f64) -> [f64; 2] {
         let (za, zb) = (k.z.eval(self.s0), k.z.eval(self.s1));
         let (z_lo, z_hi) = (za.min(zb), za.max(zb));
-        let (low, high) = if self.sign < 0.0 {
-            (z_lo - r_max, z_hi)
-        } else {
-            (z_lo, z_hi + r_max)
+        let (low, high) = match (self.certain, self.sign < 0.0) {
+            (false, _) => (z_lo - r_max, z_hi + r_max),
+            (true, true) => (z_lo - r_max, z_hi),
+            (true, false) => (z_lo, z_hi + r_max),
         };
         let margin = |z: f64| 4.0 * k.err_disc.sqrt() + 1e-9 * (z.abs() + r_max);
         [(low - margin(z_lo)) / len, (high + margin(z_hi)) / len]
@@ -482,6 +527,16 @@ struct DeferredRange {
     u: (f64, f64),
 }
 
+/// What a deferred root cell holds: certainly a crossing of the side surface where the ray
+/// enters the ball about the axis point (the `-` branch, `z = Z - sqrt(D)`) or leaves it (`+`),
+/// or a root whose branch (or its being a crossing rather than a touch) is not certified.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum CellCrossing {
+    Entry,
+    Exit,
+    Unsure,
+}
+
 /// Root cells of the Round method whose polishing waits until a query reaches them, with a
 /// lower bound of each one's `w` ([`RootCell::w_range`]): a nearest-hit query polishes the
 /// crossing it takes, not the exit behind it.
@@ -505,14 +560,23 @@ impl Deferred {
         }
     }
 
-    /// The deferred cells: index, lower and upper bound of `w`, and whether the cell's root is
-    /// on the far side of its ball (`z = Z + sqrt(D)`, the `+` branch), where the ray leaves
-    /// the ball.
-    pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, [f64; 2], bool)> + '_ {
-        self.cells
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (i, c.2, c.1.sign > 0.0))
+    /// The deferred cells: index, lower and upper bound of `w`, and what each holds.
+    pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, [f64; 2], CellCrossing)> + '_ {
+        (0..self.cells.len()).map(|i| {
+            let (w, holds) = self.cell(i);
+            (i, w, holds)
+        })
+    }
+
+    /// Cell `i`'s bounds of `w` and what it holds ([`Self::bounds`]).
+    pub(crate) fn cell(&self, i: usize) -> ([f64; 2], CellCrossing) {
+        let (_, cell, w) = &self.cells[i];
+        let holds = match (cell.certain, cell.sign > 0.0) {
+            (false, _) => CellCrossing::Unsure,
+            (true, false) => CellCrossing::Entry,
+            (true, true) => CellCrossing::Exit,
+        };
+        (*w, holds)
     }
 
     /// Polishes cell `i` into `out` (as [`roots`] would have given its roots).
