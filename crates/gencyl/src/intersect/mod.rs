@@ -315,10 +315,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let t0 = (bounds.center() - self.origin - o_local).dot(d) / d.length_squared();
         let o = o_local + t0 * d;
 
+        // On a tube of constant radius that does not fold, a far-side root is an exit.
+        let tube =
+            !self.may_fold() && matches!(self.sweep.uniform_scale(), Some([k0, k1]) if k0 == k1);
         let mut roots = SideRoots::new();
         let mut deferred = round::Deferred::new();
         let method = self.resolve(method);
-        self.side_roots(o, d, method, &mut roots, &mut deferred);
+        let entries_after = (skip_exits && tube).then_some(tmin - t0);
+        self.side_roots(o, d, method, entries_after, &mut roots, &mut deferred);
         let mut found: ArrayVec<Crossing, MAX_CROSSINGS> = ArrayVec::new();
         let side = |r: &SideRoot| {
             let t = t0 + r.w;
@@ -328,9 +332,6 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             })
         };
         found.extend(roots.iter().filter_map(side));
-        // On a tube of constant radius that does not fold, a far-side root is an exit.
-        let tube =
-            !self.may_fold() && matches!(self.sweep.uniform_scale(), Some([k0, k1]) if k0 == k1);
         // Which cells `certain_stops` may answer by: those certain to hold a crossing, on a
         // surface that cannot fold; only entries (the `-` branch) of a tube when the query
         // wants entries.
@@ -563,13 +564,15 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         o: DVec3,
         d: DVec3,
         method: Method,
+        entries_after: Option<f64>,
         out: &mut SideRoots,
         deferred: &mut round::Deferred,
     ) {
         let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
         if method == Method::Round {
             for (a, b) in prefilter::candidate_ranges(self, o, d, true) {
-                round::roots(self, o, d, widen(a, b, lo, hi), out, deferred);
+                let range = widen(a, b, lo, hi);
+                round::roots(self, o, d, range, entries_after, out, deferred);
             }
             return;
         }

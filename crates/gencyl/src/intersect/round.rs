@@ -599,12 +599,15 @@ impl Deferred {
 
 /// The side roots of a round fiber for the local ray `o + w d` on the `u` range `[u0, u1]`:
 /// polished into `out`, or where `deferred` has room and the product method isolates them,
-/// left there as cells.
+/// left there as cells. With `entries_after = Some(w_min)` (a query that wants only entries
+/// beyond `w_min`, on a tube: [`GeneralizedCylinder::intersect_first_entering_with`]) a range
+/// that [`no_entry_after`] clears is left at once.
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
     d: DVec3,
     (u0, u1): (f64, f64),
+    entries_after: Option<f64>,
     out: &mut SideRoots,
     deferred: &mut Deferred,
 ) {
@@ -615,6 +618,11 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let r = [r0 + (r1 - r0) * u0, r0 + (r1 - r0) * u1];
     let k = Polys::new(piece.points, r, o, d);
     let len = d.length();
+    if entries_after
+        .is_some_and(|w_min| no_entry_after(&k, w_min * len, r[0].abs().max(r[1].abs())))
+    {
+        return;
+    }
     let mut cells = ArrayVec::new();
     if product_cells(&k, &mut cells).is_none() {
         push_all(cyl, d, &k, (u0, u1), len, &stretch_roots(&k, 0.0, 1.0), out);
@@ -640,6 +648,47 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     }
     push_all(cyl, d, &k, (u0, u1), len, &found, out);
 }
+
+/// Whether no crossing of the `-` branch (`z = Z - sqrt(D)`) lies beyond `z_min`: wherever
+/// `D >= 0` on the range, `Z <= z_min`, so `Z - sqrt(D) <= z_min`. Checked on Bernstein cells
+/// of `Z` and `D` (each cell's `Z` coefficients below `z_min`, or its `D` coefficients below
+/// zero, beyond their rounding bounds and the margin of [`RootCell::w_range`]), halving at
+/// most [`CLEAR_BUDGET`] cells. On a tube (constant radius, no folding) the `-` branch holds
+/// every entry (`normal . d = -sqrt(D) |d| / r`): a ray that leaves a fiber's surface outward
+/// meets its `-` roots only behind it, unless the fiber bends back across its path.
+fn no_entry_after(k: &Polys, z_min: f64, r_max: f64) -> bool {
+    let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z_min.abs() + r_max);
+    let z_below = z_min - margin - SLACK * k.z.magnitude();
+    // All of the range ahead (a ray from afar): only a range without crossings would pass,
+    // and the isolation clears those as fast.
+    if k.z.range().0 >= z_below {
+        return false;
+    }
+    let mut stack: ArrayVec<(Bernstein<4>, B7), 8> = ArrayVec::new();
+    stack.push((k.z, k.disc));
+    let mut cells = 0;
+    while let Some((z, disc)) = stack.pop() {
+        if z.range().1 < z_below || disc.range().1 < -k.err_disc {
+            continue;
+        }
+        // An end of the cell ahead where the ray is within reach of a ball: give up early.
+        let ahead = |z: f64, disc: f64| z >= z_below && disc > 0.0;
+        if ahead(z.0[0], disc.0[0]) || ahead(z.0[3], disc.0[6]) {
+            return false;
+        }
+        cells += 1;
+        if cells > CLEAR_BUDGET || stack.len() + 2 > stack.capacity() {
+            return false;
+        }
+        let ((z0, z1), (d0, d1)) = (z.split(0.5), disc.split(0.5));
+        stack.push((z1, d1));
+        stack.push((z0, d0));
+    }
+    true
+}
+
+/// Most cells [`no_entry_after`] halves before it leaves a range to the full isolation.
+const CLEAR_BUDGET: usize = 12;
 
 /// Records the roots `(s, sign)` of the range `[u0, u1]` as side roots.
 fn push_all<C: CrossSection, S: SweepRule>(
