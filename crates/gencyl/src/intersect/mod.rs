@@ -1270,7 +1270,7 @@ mod tests {
     /// random, from a point on the surface, inside the fiber or outside it. Returns the fiber,
     /// the ray and `r`.
     fn fiber_and_ray(rng: &mut Rng, case: usize) -> (Cyl, Ray, f64) {
-        let offset = if case % 5 == 0 {
+        let offset = if case.is_multiple_of(5) {
             DVec3::splat(1e4)
         } else {
             DVec3::ZERO
@@ -1297,7 +1297,7 @@ mod tests {
             2 => (t + rng.unit() * rng.range(1e-3, 0.5)).normalize(),
             _ => rng.unit(),
         };
-        let d = if case % 2 == 0 { d } else { -d };
+        let d = if case.is_multiple_of(2) { d } else { -d };
         let o = match case % 3 {
             // On the surface, as a renderer's spawned rays start.
             0 => cyl.surface_point(u, v),
