@@ -76,6 +76,14 @@ struct Polys {
     distance_convex: bool,
 }
 
+/// Sign changes along a sequence of Bernstein coefficients (none of them zero): by Descartes'
+/// rule in the Bernstein basis, at least the number of roots in the cell, of the same parity.
+fn sign_changes(c: &[f64]) -> usize {
+    c.windows(2)
+        .filter(|w| (w[0] > 0.0) != (w[1] > 0.0))
+        .count()
+}
+
 /// `[lo, hi]` of a polynomial on a cell, widened by its rounding bound.
 #[inline]
 fn bounds<const K: usize>(b: &Bernstein<K>, err: f64) -> Interval {
@@ -327,10 +335,7 @@ impl Product {
                     return None;
                 }
             } else {
-                let changes =
-                    c.0.windows(2)
-                        .filter(|w| (w[0] > 0.0) != (w[1] > 0.0))
-                        .count();
+                let changes = sign_changes(&c.0);
                 if changes == 0 {
                     continue;
                 }
@@ -649,16 +654,21 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     push_all(cyl, d, &k, (u0, u1), len, &found, out);
 }
 
-/// Whether no crossing of the `-` branch (`z = Z - sqrt(D)`) lies beyond `z_min`: wherever
-/// `D >= 0` on the range, `Z <= z_min`, so `Z - sqrt(D) <= z_min`. Checked on Bernstein cells
-/// of `Z` and `D` (each cell's `Z` coefficients below `z_min`, or its `D` coefficients below
-/// zero, beyond their rounding bounds and the margin of [`RootCell::w_range`]), halving at
-/// most [`CLEAR_BUDGET`] cells. On a tube (constant radius, no folding) the `-` branch holds
-/// every entry (`normal . d = -sqrt(D) |d| / r`): a ray that leaves a fiber's surface outward
-/// meets its `-` roots only behind it, unless the fiber bends back across its path.
+/// Whether no crossing of the `-` branch (`z = Z - sqrt(D)`) lies beyond `z_min` on a tube
+/// (constant radius, no folding), where the `-` branch holds every entry (`normal . d =
+/// -sqrt(D) |d| / r`): [`nothing_ahead`] (a ray that leaves a fiber's surface outward) or
+/// [`entered_behind`] (a ray that leaves into it). `r_max` is the radius.
 fn no_entry_after(k: &Polys, z_min: f64, r_max: f64) -> bool {
-    let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z_min.abs() + r_max);
-    let z_below = z_min - margin - SLACK * k.z.magnitude();
+    // The margin of [`RootCell::w_range`], and `Z`'s rounding.
+    let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z_min.abs() + r_max) + SLACK * k.z.magnitude();
+    nothing_ahead(k, z_min - margin) || entered_behind(k, z_min - margin, r_max)
+}
+
+/// Whether `Z <= z_below` wherever `D >= 0` on the range, so that every `-` crossing
+/// `Z - sqrt(D)` lies at or behind it: on Bernstein cells of `Z` and `D` (each cell's `Z`
+/// coefficients below `z_below`, or its `D` coefficients below zero beyond their rounding
+/// bound), halving at most [`CLEAR_BUDGET`] cells.
+fn nothing_ahead(k: &Polys, z_below: f64) -> bool {
     // All of the range ahead (a ray from afar): only a range without crossings would pass,
     // and the isolation clears those as fast.
     if k.z.range().0 >= z_below {
@@ -687,7 +697,64 @@ fn no_entry_after(k: &Polys, z_min: f64, r_max: f64) -> bool {
     true
 }
 
-/// Most cells [`no_entry_after`] halves before it leaves a range to the full isolation.
+/// Whether the range's only entry lies behind `z_below`, for a ray whose point there is inside
+/// the tube (a ray that leaves into its fiber).
+///
+/// - `D > 0` on one interval of the range at most: `D`'s coefficients, of signs their rounding
+///   bound cannot flip, change sign at most once, or twice starting negative.
+/// - On it `z_-(s) = Z - sqrt(D)` (where the ray enters the ball about `a(s)`) has no local
+///   maximum: there the ray's point would lie inside the balls about the neighbouring axis
+///   points, inside the solid, though on the circle of radius `r` in the normal plane at `s`:
+///   on the surface, which for a tube that does not fold (nor pass through itself) is its
+///   boundary. Its critical points are the `-` roots (`z_-' = -H- / sqrt(D)` where `r` is
+///   constant), so there is at most one, where `z_-` is least.
+/// - A witness `s` where `D > 0` and `z_-(s) < z_below` (the point at `z_below` lies inside the
+///   ball about `a(s)`): then the least `z_-` lies behind `z_below` too. It is sought where the
+///   squared distance `E(s) = |a(s) - q|^2` from that point `q` is least, by Newton's method on
+///   `E' / 2 = P + (Z - z) Z'` from the best of five samples (`E = r^2 - D + (Z - z)^2`), and
+///   taken with `D` and `Z` widened by their rounding bounds.
+fn entered_behind(k: &Polys, z_below: f64, r_max: f64) -> bool {
+    // Only a point within `r` of the axis along the ray can be inside a ball.
+    let (z_lo, z_hi) = k.z.range();
+    if z_below <= z_lo - r_max || z_below >= z_hi + r_max {
+        return false;
+    }
+    let c = &k.disc.0;
+    if c.iter().any(|x| x.abs() <= k.err_disc) {
+        return false;
+    }
+    let changes = sign_changes(c);
+    if !(changes <= 1 || (changes == 2 && c[0] < 0.0)) {
+        return false;
+    }
+    let excess = |s: f64| {
+        let z = k.z.eval(s) - z_below;
+        z * z - k.disc.eval(s)
+    };
+    let mut s = [0.0, 0.25, 0.5, 0.75, 1.0]
+        .into_iter()
+        .map(|s| (excess(s), s))
+        .fold((f64::INFINITY, 0.5), |a, b| if b.0 < a.0 { b } else { a })
+        .1;
+    for _ in 0..WITNESS_STEPS {
+        let (p, p_s) = k.p.eval_with_derivative(s);
+        let (z_s, z_ss) = k.z_s.eval_with_derivative(s);
+        let z = k.z.eval(s) - z_below;
+        let slope = p + z * z_s;
+        let curve = p_s + z_s * z_s + z * z_ss;
+        if !(curve > 0.0) {
+            break;
+        }
+        s = (s - slope / curve).clamp(0.0, 1.0);
+    }
+    let disc = k.disc.eval(s) - 2.0 * k.err_disc;
+    disc > 0.0 && k.z.eval(s) - disc.sqrt() < z_below
+}
+
+/// Newton steps [`entered_behind`] takes toward its witness.
+const WITNESS_STEPS: usize = 4;
+
+/// Most cells [`nothing_ahead`] halves before it leaves a range to the full isolation.
 const CLEAR_BUDGET: usize = 12;
 
 /// Records the roots `(s, sign)` of the range `[u0, u1]` as side roots.
