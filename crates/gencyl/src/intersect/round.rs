@@ -702,12 +702,13 @@ fn nothing_ahead(k: &Polys, z_below: f64) -> bool {
 ///
 /// - `D > 0` on one interval of the range at most: `D`'s coefficients, of signs their rounding
 ///   bound cannot flip, change sign at most once, or twice starting negative.
-/// - On it `z_-(s) = Z - sqrt(D)` (where the ray enters the ball about `a(s)`) has no local
-///   maximum: there the ray's point would lie inside the balls about the neighbouring axis
-///   points, inside the solid, though on the circle of radius `r` in the normal plane at `s`:
-///   on the surface, which for a tube that does not fold (nor pass through itself) is its
-///   boundary. Its critical points are the `-` roots (`z_-' = -H- / sqrt(D)` where `r` is
-///   constant), so there is at most one, where `z_-` is least.
+/// - On it the critical points of `z_-(s) = Z - sqrt(D)` (where the ray enters the ball about
+///   `a(s)`) are the `-` roots (`z_-' = -H- / sqrt(D)` where `r` is constant), and each is a
+///   local minimum: where a neighbouring `s` has a smaller `z_-`, the ray's point at the
+///   critical value lies inside that ball, inside the solid, though on the circle of radius
+///   `r` in the normal plane: on the surface, which for a tube that does not fold (nor pass
+///   through itself) is its boundary. So `z_-` has no local maximum there, and at most one
+///   `-` root, where it is least.
 /// - A witness `s` where `D > 0` and `z_-(s) < z_below` (the point at `z_below` lies inside the
 ///   ball about `a(s)`): then the least `z_-` lies behind `z_below` too. It is sought where the
 ///   squared distance `E(s) = |a(s) - q|^2` from that point `q` is least, by Newton's method on
