@@ -659,9 +659,11 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
 /// -sqrt(D) |d| / r`): [`nothing_ahead`] (a ray that leaves a fiber's surface outward) or
 /// [`entered_behind`] (a ray that leaves into it). `r_max` is the radius.
 fn no_entry_after(k: &Polys, z_min: f64, r_max: f64) -> bool {
-    // The margin of [`RootCell::w_range`], and `Z`'s rounding.
-    let margin = 4.0 * k.err_disc.sqrt() + 1e-9 * (z_min.abs() + r_max) + SLACK * k.z.magnitude();
-    nothing_ahead(k, z_min - margin) || entered_behind(k, z_min - margin, r_max)
+    // `Z`'s rounding and a relative margin; where `D` may be at its rounding level, the margin
+    // of [`RootCell::w_range`] for a crossing there.
+    let relative = 1e-9 * (z_min.abs() + r_max) + SLACK * k.z.magnitude();
+    let tangent = 4.0 * k.err_disc.sqrt();
+    nothing_ahead(k, z_min - relative - tangent) || entered_behind(k, z_min - relative, r_max)
 }
 
 /// Whether `Z <= z_below` wherever `D >= 0` on the range, so that every `-` crossing
@@ -713,7 +715,10 @@ fn nothing_ahead(k: &Polys, z_below: f64) -> bool {
 ///   ball about `a(s)`): then the least `z_-` lies behind `z_below` too. It is sought where the
 ///   squared distance `E(s) = |a(s) - q|^2` from that point `q` is least, by Newton's method on
 ///   `E' / 2 = P + (Z - z) Z'` from the best of five samples (`E = r^2 - D + (Z - z)^2`), and
-///   taken with `D` and `Z` widened by their rounding bounds.
+///   taken with `D` and `Z` widened by their rounding bounds. (The entry itself may be nearly
+///   tangent, `D` at its rounding level there: the polish of the full isolation could then
+///   report it up to `sqrt(err_D)` late, past `tmin`, a hit that is not there. The witness
+///   shows the exact entry behind `z_below`, which is the answer given.)
 fn entered_behind(k: &Polys, z_below: f64, r_max: f64) -> bool {
     // Only a point within `r` of the axis along the ray can be inside a ball.
     let (z_lo, z_hi) = k.z.range();
