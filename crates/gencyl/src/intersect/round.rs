@@ -76,6 +76,12 @@ struct Polys {
     distance_convex: bool,
 }
 
+/// A relative margin for a crossing's `z` near `z` on a fiber of radius `r_max`, far above
+/// its `f64` rounding: `1e-9 (|z| + r_max)`.
+fn relative_margin(z: f64, r_max: f64) -> f64 {
+    1e-9 * (z.abs() + r_max)
+}
+
 /// Sign changes along a sequence of Bernstein coefficients (none of them zero): by Descartes'
 /// rule in the Bernstein basis, at least the number of roots in the cell, of the same parity.
 fn sign_changes(c: &[f64]) -> usize {
@@ -125,6 +131,12 @@ impl Polys {
             err_z,
             distance_convex,
         }
+    }
+
+    /// How late rounding may put a crossing `z = Z ± sqrt(D)` where `D` is at its rounding
+    /// level (a nearly tangent one): `4 sqrt(err_D)`.
+    fn tangent_margin(&self) -> f64 {
+        4.0 * self.err_disc.sqrt()
     }
 
     /// `H` of branch `sign` at `s`, in `f64` (the same value [`Self::branch`] gives).
@@ -496,7 +508,7 @@ impl RootCell {
             (true, true) => (z_lo - r_max, z_hi),
             (true, false) => (z_lo, z_hi + r_max),
         };
-        let margin = |z: f64| 4.0 * k.err_disc.sqrt() + 1e-9 * (z.abs() + r_max);
+        let margin = |z: f64| k.tangent_margin() + relative_margin(z, r_max);
         [(low - margin(z_lo)) / len, (high + margin(z_hi)) / len]
     }
 }
@@ -661,9 +673,9 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
 fn no_entry_after(k: &Polys, z_min: f64, r_max: f64) -> bool {
     // `Z`'s rounding and a relative margin; where `D` may be at its rounding level, the margin
     // of [`RootCell::w_range`] for a crossing there.
-    let relative = 1e-9 * (z_min.abs() + r_max) + SLACK * k.z.magnitude();
-    let tangent = 4.0 * k.err_disc.sqrt();
-    nothing_ahead(k, z_min - relative - tangent) || entered_behind(k, z_min - relative, r_max)
+    let relative = relative_margin(z_min, r_max) + SLACK * k.z.magnitude();
+    nothing_ahead(k, z_min - relative - k.tangent_margin())
+        || entered_behind(k, z_min - relative, r_max)
 }
 
 /// Whether `Z <= z_below` wherever `D >= 0` on the range, so that every `-` crossing
