@@ -437,7 +437,7 @@ impl PyScene {
 
     /// The number of cylinders (strand segments count one each); hits' `object` numbers them.
     fn __len__(&self) -> usize {
-        self.world.scene.cylinders().len()
+        self.world.scene.len()
     }
 
     /// The bounds of the cylinders and spheres as a (2, 3) array `[min, max]`, or `None` for
@@ -509,7 +509,14 @@ impl PyScene {
             voxel,
             size: [size.0, size.1, size.2],
         };
-        let cylinders = self.world.scene.cylinders();
+        // Rebuilt from the scene's packed store for the labelling's lifetime.
+        let cylinders: Vec<_> = self
+            .world
+            .scene
+            .cylinders()
+            .map(|c| c.into_owned())
+            .collect();
+        let cylinders = cylinders.as_slice();
         let numbers: Vec<u32> = (0..cylinders.len() as u32).collect();
         let pool = pool(threads)?;
         let labels = py
@@ -524,7 +531,7 @@ impl PyScene {
         format!(
             "<gencyl.Scene {}: {} cylinders>",
             self.name,
-            self.world.scene.cylinders().len()
+            self.world.scene.len()
         )
     }
 

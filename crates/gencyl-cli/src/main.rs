@@ -601,7 +601,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
             },
             settings.spp,
             settings.integrator,
-            world.scene.cylinders().len(),
+            world.scene.len(),
             (t1 - t0).as_secs_f64(),
             (t2 - t1).as_secs_f64(),
             (t3 - t2).as_secs_f64()
@@ -719,7 +719,7 @@ fn ct_command(args: CtArgs) -> Result<()> {
             s.rows,
             s.samples(),
             setup.quantity.name(),
-            world.scene.cylinders().len(),
+            world.scene.len(),
             (t1 - t0).as_secs_f64(),
             seconds,
             views.len() as f64 / seconds.max(1e-9),
@@ -1312,7 +1312,7 @@ fn bench_render(args: &BenchArgs) -> Result<()> {
     writeln!(
         out,
         "{name},{},{},{},{},{},{},{:.3},{:.3},{cpu:.2},{}",
-        world.scene.cylinders().len(),
+        world.scene.len(),
         camera.width,
         camera.height,
         settings.spp,
@@ -1395,7 +1395,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let t2 = Instant::now();
         let peak_mib =
             limits::peak_resident_memory().map_or(f64::NAN, |b| b as f64 / (1 << 20) as f64);
-        let n = world.scene.cylinders().len();
+        let n = world.scene.len();
         let [camera_rays, incoherent] = bench_ray_sets(&world, camera, (width, height));
         for (kind, rays) in [("camera", &camera_rays), ("incoherent", &incoherent)] {
             if !wanted(&args.kinds, kind) {
@@ -1457,7 +1457,7 @@ fn raycast_command(args: RaycastArgs) -> Result<()> {
 
         if args.stats {
             let bvh = scene.bvh().stats();
-            let n = scene.cylinders().len();
+            let n = scene.len();
             let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
             let mut e = io::stderr().lock();
             writeln!(

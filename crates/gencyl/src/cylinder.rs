@@ -254,7 +254,7 @@ pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
     /// Boxed, and only where there are any (most axes have none): a thin pointer in the struct.
     switches: Option<Box<ArrayVec<f64, 8>>>,
     /// Whether the swept surface may pass through the solid (see [`Self::may_fold`]).
-    may_fold: bool,
+    pub(crate) may_fold: bool,
 }
 
 impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
@@ -419,6 +419,34 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         })
     }
 
+    /// A cylinder from parts that were taken from a built one ([`crate::PackedCylinders`]):
+    /// no checks, no frame switches.
+    pub(crate) fn from_packed(
+        axis: CubicBezier,
+        origin: DVec3,
+        framing: Framing,
+        section: C,
+        sweep: S,
+        caps: [bool; 2],
+        may_fold: bool,
+    ) -> Self {
+        GeneralizedCylinder {
+            axis,
+            origin,
+            framing,
+            section,
+            sweep,
+            caps,
+            switches: None,
+            may_fold,
+        }
+    }
+
+    /// Whether the frame has switches (Frenet's, where `a' x a''` vanishes).
+    pub(crate) fn has_switches(&self) -> bool {
+        self.switches.is_some()
+    }
+
     /// Whether the swept surface of sections within `r` of an axis like `axis` may pass through
     /// its own solid (errata 5): unless the reach stays below the radius of curvature,
     /// `r kappa < 1` with `kappa <= max|a''| / min|a'|^2` (no fold near the axis), and the
@@ -530,8 +558,16 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// The farthest the solid gets from its axis: the rule's largest stretch times the section's
     /// bounding radius.
     pub fn reach(&self) -> f64 {
-        let [l0, l1] = self.sweep.scale_bound();
-        l0.max(l1) * self.section.bounding_radius()
+        let [r0, r1] = self.reach_ends();
+        r0.max(r1)
+    }
+
+    /// `[R(0), R(1)]`: the solid's slice at `u` lies within `R(u)` of `a(u)` for a linear `R`
+    /// with these end values (the rule's stretch bound, [`SweepRule::scale_bound`], times the
+    /// section's bounding radius).
+    pub fn reach_ends(&self) -> [f64; 2] {
+        let r = self.section.bounding_radius();
+        self.sweep.scale_bound().map(|l| l * r)
     }
 
     /// Heap bytes of the cylinder's own (the frame's switch list, a fixed frame; none for most

@@ -28,6 +28,7 @@ pub mod cylinder;
 pub mod frame;
 pub mod intersect;
 pub mod limits;
+pub mod packed;
 pub mod real;
 pub mod roots;
 pub mod section;
@@ -42,6 +43,7 @@ pub use cylinder::{
 };
 pub use frame::{Frame, FrameAt, Framing};
 pub use intersect::Method;
+pub use packed::PackedCylinders;
 pub use section::{BezierLoop, CrossSection, Section, UnitCircle};
 pub use strand::{Strand, StrandFraming, StrandSegment};
 pub use sweep::{HairSweep, SweepRule};

@@ -15,7 +15,7 @@
 
 use std::ops::{Add, Mul};
 
-use gencyl::{Aabb, CrossSection, GeneralizedCylinder, Ray, SweepRule};
+use gencyl::{Aabb, GeneralizedCylinder, Ray};
 use glam::{DVec2, DVec3};
 
 /// How many times the hull test halves the curve at most (pieces reach [`MAX_PIECE_LEVEL`]).
@@ -91,10 +91,15 @@ fn halves<T: Copy + Add<Output = T> + Mul<f64, Output = T>>(q: &[T; 4]) -> [[T; 
 /// bounded by a linear function of `u` ([`SweepRule::scale_bound`]), so its larger end value
 /// on the piece bounds it there.
 pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
-    let [l0, l1] = c.sweep().scale_bound();
+    piece_reach(c.reach_ends(), piece)
+}
+
+/// [`reach_on`] from the cylinder's [`GeneralizedCylinder::reach_ends`] `[R0, R1]`: the larger
+/// of `R0 + (R1 - R0) u` at the piece's ends.
+#[inline]
+fn piece_reach([r0, r1]: [f64; 2], piece: Piece) -> f64 {
     let (u0, u1) = piece.range();
-    let l = (l0 + (l1 - l0) * u0).max(l0 + (l1 - l0) * u1);
-    l * c.section().bounding_radius()
+    (r0 + (r1 - r0) * u0).max(r0 + (r1 - r0) * u1)
 }
 
 /// How finely to cut a cylinder into BVH pieces, as a level `l` (`2^l` pieces), at most
@@ -268,13 +273,27 @@ impl RaySpace {
         tmin: f64,
         tmax: f64,
     ) -> bool {
-        let p = c.axis().points;
+        self.may_hit_axis_piece(&c.axis().points, c.reach_ends(), piece, tmin, tmax)
+    }
+
+    /// [`Self::may_hit_piece`] from the cylinder's axis in world coordinates
+    /// ([`GeneralizedCylinder::axis`]) and its [`GeneralizedCylinder::reach_ends`], as
+    /// [`gencyl::PackedCylinders::axis_and_reach`] gives them without rebuilding the cylinder.
+    #[inline]
+    pub fn may_hit_axis_piece(
+        &self,
+        p: &[DVec3; 4],
+        reach_ends: [f64; 2],
+        piece: Piece,
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
         let q = piece.sub_bezier(p.map(|x| self.project(x)));
         // Rounding of the projection is about eps |p - o| per coordinate: widen by far more.
         let size = p
             .iter()
             .fold(0.0f64, |m, x| m.max((*x - self.origin).abs().max_element()));
-        let reach = reach_on(c, piece) * (1.0 + 1e-9) + 1e-9 * size;
+        let reach = piece_reach(reach_ends, piece) * (1.0 + 1e-9) + 1e-9 * size;
         // A hit x within R of a(u) has z(x) within R of z(a(u)), and t = z(x) / |d|.
         let (zmin, zmax) = (tmin * self.len, tmax * self.len);
         let zmin = zmin - reach - 1e-9 * zmin.abs();

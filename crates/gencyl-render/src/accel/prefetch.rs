@@ -7,17 +7,24 @@
 /// x86-64.
 #[inline(always)]
 pub fn prefetch<T>(x: &T) {
+    prefetch_bytes((x as *const T).cast::<u8>(), size_of::<T>());
+}
+
+/// [`prefetch`] of the `len` bytes at `p` (meant for live data; the hint is harmless for any
+/// address: it cannot fault and reads nothing the program sees).
+#[inline(always)]
+pub fn prefetch_bytes(p: *const u8, len: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let p = (x as *const T).cast::<i8>();
-        // The lines of bytes 0, 64, 128, ... and of the last byte (`x` need not start a line).
-        let last = size_of::<T>().saturating_sub(1);
+        let p = p.cast::<i8>();
+        // The lines of bytes 0, 64, 128, ... and of the last byte (`p` need not start a line).
+        let last = len.saturating_sub(1);
         let mut offset = 0;
         while offset <= last + 63 {
             // SAFETY: `_mm_prefetch` dereferences nothing (a prefetch of any address is
-            // harmless, and this one lies within `x`, a live reference); SSE, which it needs,
-            // is part of the x86-64 baseline.
+            // harmless, even one past the caller's data); SSE, which it needs, is part of the
+            // x86-64 baseline.
             #[allow(unsafe_code)]
             unsafe {
                 _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(offset.min(last)));
@@ -26,5 +33,5 @@ pub fn prefetch<T>(x: &T) {
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
+    let _ = (p, len);
 }

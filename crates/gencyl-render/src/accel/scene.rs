@@ -1,11 +1,13 @@
 //! The scene ready for ray queries: cylinders and a BVH over pieces of their axes.
 
-use gencyl::{GeneralizedCylinder, Hit, Method, Ray, Section};
+use std::borrow::Cow;
+
+use gencyl::{GeneralizedCylinder, Hit, Method, PackedCylinders, Ray, Section};
 use rayon::prelude::*;
 
 use crate::accel::bvh::Bvh;
 use crate::accel::cull::{Piece, RaySpace, level_for, pieces_bounds_under};
-use crate::accel::prefetch::prefetch;
+use crate::accel::prefetch::prefetch_bytes;
 
 /// A hit on a scene: the cylinder's hit and the cylinder's number.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -22,10 +24,11 @@ pub struct SceneHit {
 /// several, so their boxes stay tight); a ray reaching a piece's box is culled by the cheap
 /// [`RaySpace`] test against that piece before the exact solver runs, once per cylinder and
 /// ray. Queries take a caller-owned [`Scratch`] so that none allocates once its buffers have
-/// grown.
+/// grown. The cylinders are stored packed ([`PackedCylinders`]: a strand's segments share their
+/// joints' control points) and rebuilt for each test.
 #[derive(Clone, Debug)]
 pub struct Scene {
-    cylinders: Vec<GeneralizedCylinder>,
+    cylinders: PackedCylinders,
     bvh: Bvh,
 }
 
@@ -43,10 +46,15 @@ const _: () = assert!(
     2 << crate::accel::cull::MAX_PIECE_LEVEL <= 1 << PIECE_BITS,
     "piece index fits its bits"
 );
+const _: () = assert!(
+    PackedCylinders::MAX <= 1 << (32 - PIECE_BITS),
+    "cylinder numbers fit their bits"
+);
 
 impl Scene {
-    /// The most cylinders a scene holds (the BVH names a cylinder's pieces in 32 bits).
-    pub const MAX_CYLINDERS: usize = 1 << (32 - PIECE_BITS);
+    /// The most cylinders a scene holds, 2^26 (the packed store's limit; the BVH names a
+    /// cylinder's pieces in 32 bits, which would allow 2^28).
+    pub const MAX_CYLINDERS: usize = PackedCylinders::MAX;
 
     /// Builds the BVH over `cylinders` (in parallel on the current rayon pool).
     ///
@@ -56,14 +64,17 @@ impl Scene {
     pub fn new(cylinders: Vec<GeneralizedCylinder>) -> Self {
         assert!(
             cylinders.len() <= Self::MAX_CYLINDERS,
-            "at most 2^28 cylinders"
+            "at most 2^26 cylinders"
         );
         let levels: Vec<u32> = cylinders.par_iter().map(level_for).collect();
+        // Packed before the BVH is built, so the build's memory adds to the packed cylinders,
+        // not to the whole ones.
+        let cylinders = PackedCylinders::new(cylinders);
         let bvh = Bvh::build_grouped(
             cylinders.len(),
             |i| 1 << levels[i],
             |i, out| {
-                pieces_bounds_under(&cylinders[i], Piece::WHOLE, levels[i], &mut |p, b| {
+                pieces_bounds_under(&cylinders.get(i), Piece::WHOLE, levels[i], &mut |p, b| {
                     out.push((b, (i as u32) << PIECE_BITS | p.0))
                 });
             },
@@ -71,9 +82,28 @@ impl Scene {
         Scene { cylinders, bvh }
     }
 
-    /// The cylinders, indexed by object number.
-    pub fn cylinders(&self) -> &[GeneralizedCylinder] {
-        &self.cylinders
+    /// How many cylinders.
+    pub fn len(&self) -> usize {
+        self.cylinders.len()
+    }
+
+    /// Whether the scene has no cylinder.
+    pub fn is_empty(&self) -> bool {
+        self.cylinders.is_empty()
+    }
+
+    /// Cylinder `object` (rebuilt from its packed form, or borrowed).
+    ///
+    /// # Panics
+    ///
+    /// If `object >= self.len()`.
+    pub fn cylinder(&self, object: u32) -> Cow<'_, GeneralizedCylinder> {
+        self.cylinders.get(object as usize)
+    }
+
+    /// The cylinders in object order.
+    pub fn cylinders(&self) -> impl ExactSizeIterator<Item = Cow<'_, GeneralizedCylinder>> + '_ {
+        self.cylinders.iter()
     }
 
     /// The BVH (over pieces of cylinders).
@@ -81,23 +111,20 @@ impl Scene {
         &self.bvh
     }
 
-    /// Bytes held by the cylinders (their structs and heap data, a profile shared by many
-    /// cylinders once) and the BVH.
+    /// Bytes held by the cylinders (packed, and the whole ones with their heap data; a profile
+    /// shared by many cylinders once) and the BVH.
     pub fn memory_bytes(&self) -> usize {
         let mut profiles = std::collections::HashSet::new();
-        let cyl = self.cylinders.capacity() * std::mem::size_of::<GeneralizedCylinder>()
-            + self
-                .cylinders
-                .iter()
-                .map(|c| {
-                    let section = match c.section() {
-                        Section::Loop(l) if profiles.insert(l.storage_id()) => l.storage_bytes(),
-                        _ => 0,
-                    };
-                    section + c.heap_bytes()
-                })
-                .sum::<usize>();
-        cyl + self.bvh.memory_bytes()
+        let sections = self
+            .cylinders
+            .whole()
+            .iter()
+            .map(|c| match c.section() {
+                Section::Loop(l) if profiles.insert(l.storage_id()) => l.storage_bytes(),
+                _ => 0,
+            })
+            .sum::<usize>();
+        self.cylinders.memory_bytes() + sections + self.bvh.memory_bytes()
     }
 
     /// Walks the BVH and hands each cylinder that may be hit within `(tmin, tmax)` to
@@ -115,9 +142,8 @@ impl Scene {
         // Made when the first leaf is reached (most rays miss the model).
         let mut space: Option<RaySpace> = None;
         let cylinder = |key: u32| {
-            if let Some(c) = self.cylinders.get((key >> PIECE_BITS) as usize) {
-                prefetch(c);
-            }
+            let (p, len) = self.cylinders.storage((key >> PIECE_BITS) as usize);
+            prefetch_bytes(p, len);
         };
         self.bvh
             .traverse_prefetching(ray, tmin, tmax, cylinder, |key, tmax| {
@@ -125,13 +151,15 @@ impl Scene {
                 if tested.contains(&i) {
                     return tmax;
                 }
-                let c = &self.cylinders[i as usize];
+                // The cull reads the stored axis; the cylinder is rebuilt only past it.
+                let (axis, reach) = self.cylinders.axis_and_reach(i as usize);
                 let space = space.get_or_insert_with(|| RaySpace::new(ray));
-                if !space.may_hit_piece(c, Piece(key & ((1 << PIECE_BITS) - 1)), tmin, tmax) {
+                let piece = Piece(key & ((1 << PIECE_BITS) - 1));
+                if !space.may_hit_axis_piece(&axis, reach, piece, tmin, tmax) {
                     return tmax;
                 }
                 tested.push(i);
-                exact(i, c, tmax)
+                exact(i, &self.cylinders.get(i as usize), tmax)
             });
     }
 

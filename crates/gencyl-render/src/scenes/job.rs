@@ -164,8 +164,7 @@ pub fn plan(
 /// geometry, a light that emits nothing, a camera that sees no geometry.
 pub fn warnings(world: &World, camera: &Camera, name: &str) -> Vec<String> {
     let mut out = Vec::new();
-    let empty =
-        world.scene.cylinders().is_empty() && world.spheres.is_empty() && world.planes.is_empty();
+    let empty = world.scene.is_empty() && world.spheres.is_empty() && world.planes.is_empty();
     if empty {
         out.push(format!(
             "{name} has no geometry (no cylinders, strands, hair, spheres or planes, or only empty or degenerate strands): the image shows only the sky"

@@ -116,7 +116,6 @@ impl World {
         let b = self
             .scene
             .cylinders()
-            .iter()
             .fold(Aabb::EMPTY, |b, c| b.union(c.bounds()));
         self.spheres.iter().fold(b, |b, (s, _)| {
             b.union(Aabb {
@@ -270,7 +269,7 @@ impl World {
                 section: None,
             };
         };
-        let c = &self.scene.cylinders()[object as usize];
+        let c = &*self.scene.cylinder(object);
         let frame = c.frame(u);
         ShadingPoint {
             normal: h.normal,

@@ -554,7 +554,7 @@ mod tests {
     use crate::accel::{Scene, SceneHit, Scratch, sort_hits};
     use crate::sampling::SampleRng as Rng;
     use crate::scenes::synth::{FiberParams, random_fibers, random_rays};
-    use gencyl::Hit;
+    use gencyl::{GeneralizedCylinder, Hit, Strand};
 
     #[test]
     fn node_is_128_bytes() {
@@ -1014,10 +1014,10 @@ mod tests {
     }
 
     /// The hits of every cylinder, brute force.
-    fn brute_all(scene: &Scene, ray: &Ray, tmin: f64) -> Vec<SceneHit> {
+    fn brute_all(cylinders: &[GeneralizedCylinder], ray: &Ray, tmin: f64) -> Vec<SceneHit> {
         let mut out = vec![];
         let mut scratch: Vec<Hit> = vec![];
-        for (i, c) in scene.cylinders().iter().enumerate() {
+        for (i, c) in cylinders.iter().enumerate() {
             scratch.clear();
             c.intersect_all(ray, tmin, f64::INFINITY, &mut scratch);
             out.extend(scratch.iter().map(|&hit| SceneHit {
@@ -1036,11 +1036,34 @@ mod tests {
             elliptical_fraction: 0.05,
             ..FiberParams::default()
         };
-        let cyls: Vec<_> = random_fibers(&params, 11)
+        let mut cyls: Vec<_> = random_fibers(&params, 11)
             .iter()
             .map(|s| s.build().unwrap())
             .collect();
-        let scene = Scene::new(cyls);
+        // And strands, whose segments the scene stores packed (joined at their joints).
+        let mut rng = Rng::from_seed(9);
+        for _ in 0..40 {
+            let mut p = rng.in_box(DVec3::ZERO, DVec3::ONE);
+            let step = rng.unit_vector() * 0.1;
+            let points = (0..8)
+                .map(|_| {
+                    p += step + rng.unit_vector() * 0.03;
+                    p
+                })
+                .collect();
+            let strand = Strand {
+                points,
+                radius: [0.01, rng.range(0.002, 0.01)],
+                ellipticity: if rng.uniform() < 0.3 { 0.6 } else { 1.0 },
+                twist: [0.0, rng.range(0.0, 3.0)],
+                section: Default::default(),
+            };
+            cyls.extend(strand.cylinders().unwrap());
+        }
+        let scene = Scene::new(cyls.clone());
+        for (i, c) in cyls.iter().enumerate() {
+            assert!(*scene.cylinder(i as u32) == *c, "cylinder {i} as given");
+        }
         let rays = random_rays(1500, 12, &params);
         let mut rng = Rng::from_seed(5);
         let (mut scratch, mut all) = (Scratch::default(), vec![]);
@@ -1056,7 +1079,7 @@ mod tests {
                 2 => Ray::new(inside, axis * rng.range(0.1, 10.0)),
                 _ => *ray,
             };
-            let brute = brute_all(&scene, ray, tmin);
+            let brute = brute_all(&cyls, ray, tmin);
             all.clear();
             scene.all_hits(ray, tmin, f64::INFINITY, &mut all, &mut scratch);
             assert_eq!(all, brute, "all hits of ray {r} {ray:?} tmin {tmin}");
