@@ -678,6 +678,68 @@ impl CollapsePlan {
     }
 }
 
+/// For a test of [`collapse`]: the binary tree of the direct build over `boxes` collapsed by
+/// the dynamic program and by the rule it replaced (open the interior child of the largest
+/// area until there are four, Wald et al. 2008), each as (wide nodes, their total area).
+#[cfg(test)]
+pub(super) fn collapse_both_ways(boxes: &[Aabb]) -> [(usize, f64); 2] {
+    fn greedy(arena: &[BinNode], node: u32, nodes: &mut Vec<u32>) {
+        let Kind::Interior(a, b) = arena[node as usize].kind else {
+            return;
+        };
+        nodes.push(node);
+        let mut kids: ArrayVec<u32, 4> = ArrayVec::from_iter([a, b]);
+        while kids.len() < 4 {
+            let widest = kids
+                .iter()
+                .enumerate()
+                .filter_map(|(i, &k)| match arena[k as usize].kind {
+                    Kind::Interior(a, b) => Some((i, a, b, arena[k as usize].bounds.half_area())),
+                    Kind::Leaf(_) => None,
+                })
+                .max_by(|x, y| x.3.total_cmp(&y.3));
+            let Some((i, a, b, _)) = widest else {
+                break;
+            };
+            kids[i] = a;
+            kids.insert(i + 1, b);
+        }
+        for kid in kids {
+            greedy(arena, kid, nodes);
+        }
+    }
+    let mut prims: Vec<Prim> = boxes
+        .iter()
+        .zip(0..)
+        .map(|(b, i)| Prim::new(b, i))
+        .collect();
+    let mut arena = Vec::new();
+    let all = measure(&prims);
+    let built = build(&mut prims, 0, 1, all, &mut arena);
+    let mut out = Vec::new();
+    collapse(&arena, built.node, DVec3::ZERO, &mut out);
+    let area = |n: &Node4| {
+        let b = (0..4)
+            .filter(|&i| n.child[i].count != u32::MAX)
+            .fold(Bounds::EMPTY, |b, i| {
+                let lane = |c: &[[f32; 4]; 3]| f32x4::new([c[0][i], c[1][i], c[2][i], 0.0]);
+                b.union(&Bounds::of(lane(&n.min), lane(&n.max)))
+            });
+        b.half_area()
+    };
+    let mut wide = Vec::new();
+    greedy(&arena, built.node, &mut wide);
+    [
+        (out.len(), out.iter().map(area).sum()),
+        (
+            wide.len(),
+            wide.iter()
+                .map(|&n| arena[n as usize].bounds.half_area())
+                .sum(),
+        ),
+    ]
+}
+
 /// Inputs with at least this many primitives are built through clusters (the module's
 /// docs); smaller ones directly.
 pub(super) const CLUSTER_MIN: usize = 1 << 15;
