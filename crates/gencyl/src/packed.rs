@@ -26,8 +26,8 @@ use glam::DVec3;
 use crate::curve::CubicBezier;
 use crate::cylinder::GeneralizedCylinder;
 use crate::frame::Framing;
-use crate::section::{Section, UnitCircle};
-use crate::sweep::HairSweep;
+use crate::section::{CrossSection, Section, UnitCircle};
+use crate::sweep::{HairSweep, SweepRule};
 
 /// A packed cylinder (module docs), or a whole one's place in `whole`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -59,13 +59,11 @@ impl Packed {
     const END_SHIFT: u32 = 6;
 }
 
-/// The sweep's radii, `[A0, A1]` and `[B0, B1]` (see [`HairSweep`]), and the reach they give
-/// ([`GeneralizedCylinder::reach_ends`]).
+/// The sweep's radii, `[A0, A1]` and `[B0, B1]` (see [`HairSweep`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Radii {
     major: [f64; 2],
     minor: [f64; 2],
-    reach: [f64; 2],
 }
 
 /// Cylinders, numbered in the order given, stored compactly (module docs).
@@ -140,7 +138,6 @@ impl PackedCylinders {
         let radii = Radii {
             major: c.sweep.major,
             minor: c.sweep.minor,
-            reach: c.reach_ends(),
         };
         if self.radii.last().map(|r| r.bits()) != Some(radii.bits()) {
             self.radii.push(radii);
@@ -240,7 +237,15 @@ impl PackedCylinders {
             let c = &self.whole[r.radii as usize];
             return (c.axis().points, c.reach_ends());
         }
-        (self.world_points(i), self.radii[r.radii as usize].reach)
+        // `reach_ends` of the rebuilt cylinder.
+        let radii = self.radii[r.radii as usize];
+        let sweep = HairSweep {
+            major: radii.major,
+            minor: radii.minor,
+            rotation: r.rotation,
+        };
+        let bound = UnitCircle.bounding_radius();
+        (self.world_points(i), sweep.scale_bound().map(|l| l * bound))
     }
 
     /// How many cylinders.
@@ -301,7 +306,7 @@ impl PackedCylinders {
 }
 
 impl Radii {
-    /// The radii's bits (the reach follows from them).
+    /// The radii's bits.
     fn bits(&self) -> [u64; 4] {
         [self.major[0], self.major[1], self.minor[0], self.minor[1]].map(f64::to_bits)
     }
