@@ -69,7 +69,7 @@ struct Radii {
 /// Cylinders, numbered in the order given, stored compactly (module docs).
 #[derive(Clone, Debug, Default)]
 pub struct PackedCylinders {
-    /// One a cylinder, followed by one more whose `p0` ends the last joined one.
+    /// One a cylinder, in order (a joined record's `p3` is the next record's `p0`).
     records: Vec<Packed>,
     /// The fourth control points of the packed cylinders that are not joined to the next.
     ends: Vec<DVec3>,
