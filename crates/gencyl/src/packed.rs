@@ -423,6 +423,16 @@ mod tests {
         assert_eq!(packed.len(), all.len());
         for (i, c) in all.iter().enumerate() {
             assert!(*packed.get(i) == *c, "cylinder {i} comes back as it was");
+            // What the cull reads: the reach itself, the world points to rounding.
+            let (points, reach) = packed.axis_and_reach(i);
+            assert_eq!(reach, c.reach_ends(), "cylinder {i}: reach");
+            for (p, q) in points.iter().zip(c.axis().points) {
+                let tol = 4.0 * f64::EPSILON * q.abs().max_element();
+                assert!(
+                    (*p - q).abs().max_element() <= tol,
+                    "cylinder {i}: {p} against {q}"
+                );
+            }
         }
         assert!(
             packed
