@@ -192,13 +192,23 @@ impl PackedCylinders {
         [r.points[0], r.points[1], r.points[2], p3]
     }
 
+    /// The sweep of packed record `r`: its radii and rotation.
+    #[inline]
+    fn sweep(&self, r: &Packed) -> HairSweep {
+        let radii = self.radii[r.radii as usize];
+        HairSweep {
+            major: radii.major,
+            minor: radii.minor,
+            rotation: r.rotation,
+        }
+    }
+
     /// The packed cylinder `i` rebuilt.
     #[inline]
     fn unpack(&self, i: usize) -> GeneralizedCylinder {
         let r = &self.records[i];
         let p = self.world_points(i);
         let origin = p[0];
-        let radii = self.radii[r.radii as usize];
         GeneralizedCylinder::from_packed(
             CubicBezier::new(p.map(|x| x - origin)),
             origin,
@@ -208,11 +218,7 @@ impl PackedCylinders {
                 Framing::Frenet
             },
             Section::Circle(UnitCircle),
-            HairSweep {
-                major: radii.major,
-                minor: radii.minor,
-                rotation: r.rotation,
-            },
+            self.sweep(r),
             [
                 r.flags & Packed::CAP_START != 0,
                 r.flags & Packed::CAP_END != 0,
@@ -238,14 +244,9 @@ impl PackedCylinders {
             return (c.axis().points, c.reach_ends());
         }
         // `reach_ends` of the rebuilt cylinder.
-        let radii = self.radii[r.radii as usize];
-        let sweep = HairSweep {
-            major: radii.major,
-            minor: radii.minor,
-            rotation: r.rotation,
-        };
         let bound = UnitCircle.bounding_radius();
-        (self.world_points(i), sweep.scale_bound().map(|l| l * bound))
+        let reach = self.sweep(r).scale_bound().map(|l| l * bound);
+        (self.world_points(i), reach)
     }
 
     /// How many cylinders.
@@ -315,12 +316,6 @@ impl Radii {
 /// The bits of a point's coordinates (equal bits: the same point, `-0` and `0` told apart).
 fn bits(p: DVec3) -> [u64; 3] {
     p.to_array().map(f64::to_bits)
-}
-
-impl FromIterator<GeneralizedCylinder> for PackedCylinders {
-    fn from_iter<I: IntoIterator<Item = GeneralizedCylinder>>(iter: I) -> Self {
-        PackedCylinders::new(iter)
-    }
 }
 
 #[cfg(test)]
