@@ -59,6 +59,11 @@ impl Packed {
     const END_SHIFT: u32 = 6;
 }
 
+/// A cylinder's own record in a [`PackedCylinders`], as [`PackedCylinders::new_mapped`] makes
+/// it (opaque).
+#[derive(Clone, Copy, Debug)]
+pub struct Record(Packed);
+
 /// The sweep's radii, `[A0, A1]` and `[B0, B1]` (see [`HairSweep`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Radii {
@@ -90,39 +95,58 @@ impl PackedCylinders {
     ///
     /// With more than [`Self::MAX`] cylinders.
     pub fn new(cylinders: impl IntoIterator<Item = GeneralizedCylinder>) -> Self {
-        let cylinders = cylinders.into_iter();
+        let cylinders: Vec<GeneralizedCylinder> = cylinders.into_iter().collect();
+        Self::new_mapped(cylinders, |cylinders, record| {
+            cylinders.iter().map(record).collect()
+        })
+    }
+
+    /// [`Self::new`], with each cylinder's own record made by `map(cylinders, record)`, which
+    /// must return `cylinders.iter().map(record)` collected, in order (a caller can map in
+    /// parallel; the records then take their first touch of fresh memory in parallel too).
+    /// The rest, joining a strand's records and sharing their radii, runs in order.
+    ///
+    /// # Panics
+    ///
+    /// With more than [`Self::MAX`] cylinders, or if `map` returns other than one record a
+    /// cylinder.
+    pub fn new_mapped(
+        cylinders: Vec<GeneralizedCylinder>,
+        map: impl FnOnce(
+            &[GeneralizedCylinder],
+            &(dyn Fn(&GeneralizedCylinder) -> Record + Sync),
+        ) -> Vec<Record>,
+    ) -> Self {
+        assert!(cylinders.len() <= Self::MAX, "too many cylinders");
+        let records = map(&cylinders, &|c| Record(Self::pack(c)));
+        assert_eq!(records.len(), cylinders.len(), "one record a cylinder");
         let mut out = PackedCylinders {
-            records: Vec::with_capacity(cylinders.size_hint().0),
+            // The records' own memory, written in place below.
+            records: records.into_iter().map(|r| r.0).collect(),
             ..Default::default()
         };
-        for c in cylinders {
-            out.push(c);
+        for (i, c) in cylinders.into_iter().enumerate() {
+            out.settle(i, c);
         }
-        out.records.shrink_to_fit();
         out.ends.shrink_to_fit();
         out.radii.shrink_to_fit();
         out.whole.shrink_to_fit();
         out
     }
 
-    /// Appends `c`, packed if it can be.
-    fn push(&mut self, c: GeneralizedCylinder) {
-        assert!(self.records.len() < Self::MAX, "too many cylinders");
-        let Some(mut record) = Self::pack(&c) else {
-            self.records.push(Packed {
-                points: [DVec3::ZERO; 3],
-                reference: DVec3::ZERO,
-                rotation: [0.0; 2],
-                radii: self.whole.len() as u32,
-                flags: Packed::WHOLE,
-            });
+    /// Completes record `i` (made by [`Self::pack`], all before it settled): a cylinder that
+    /// did not pack is kept whole; a packed one is joined to the record before it where it
+    /// starts at that one's end, and takes its radii's place.
+    fn settle(&mut self, i: usize, c: GeneralizedCylinder) {
+        if self.records[i].flags & Packed::WHOLE != 0 {
+            self.records[i].radii = self.whole.len() as u32;
             self.whole.push(c);
             return;
-        };
-        // Joined to the last record when that is packed, its end is the last one kept aside,
-        // and `c`'s origin serves as its `p3` (rebuilds its local point: the end kept is
-        // `o + l`, which may differ from the strand's joint in the last bit).
-        if let Some(last) = self.records.last_mut()
+        }
+        // Joined to the record before when that is packed, its end is the last one kept
+        // aside, and `c`'s origin serves as its `p3` (rebuilds its local point: the end kept
+        // is `o + l`, which may differ from the strand's joint in the last bit).
+        if let Some(last) = i.checked_sub(1).map(|j| &mut self.records[j])
             && last.flags & (Packed::WHOLE | Packed::JOINED) == 0
             && (last.flags >> Packed::END_SHIFT) as usize + 1 == self.ends.len()
             && self.ends.last().is_some_and(|&end| {
@@ -133,6 +157,7 @@ impl PackedCylinders {
             last.flags = (last.flags & ((1 << Packed::END_SHIFT) - 1)) | Packed::JOINED;
             self.ends.pop();
         }
+        let record = &mut self.records[i];
         record.flags |= (self.ends.len() as u32) << Packed::END_SHIFT;
         self.ends.push(c.origin + c.axis.points[3]);
         let radii = Radii {
@@ -143,15 +168,23 @@ impl PackedCylinders {
             self.radii.push(radii);
         }
         record.radii = self.radii.len() as u32 - 1;
-        self.records.push(record);
-        debug_assert!(
-            self.unpack(self.records.len() - 1) == c,
-            "a packed cylinder rebuilds as itself"
-        );
+        debug_assert!(self.unpack(i) == c, "a packed cylinder rebuilds as itself");
     }
 
-    /// The record of `c` (without `radii` and the end's place), if it packs (module docs).
-    fn pack(c: &GeneralizedCylinder) -> Option<Packed> {
+    /// The record of `c` (without `radii` and the end's place) if it packs (module docs), else
+    /// a placeholder marked [`Packed::WHOLE`].
+    fn pack(c: &GeneralizedCylinder) -> Packed {
+        Self::packed(c).unwrap_or(Packed {
+            points: [DVec3::ZERO; 3],
+            reference: DVec3::ZERO,
+            rotation: [0.0; 2],
+            radii: 0,
+            flags: Packed::WHOLE,
+        })
+    }
+
+    /// The record of `c` (without `radii` and the end's place), if it packs.
+    fn packed(c: &GeneralizedCylinder) -> Option<Packed> {
         if !matches!(c.section, Section::Circle(_)) || c.has_switches() {
             return None;
         }
@@ -435,6 +468,14 @@ mod tests {
                 .map(|c| c.into_owned())
                 .eq(all.iter().cloned())
         );
+        // The records made in another order (as a parallel map makes them): the same store.
+        let mapped = PackedCylinders::new_mapped(all.clone(), |cylinders, record| {
+            let mut records: Vec<Record> = cylinders.iter().rev().map(record).collect();
+            records.reverse();
+            records
+        });
+        assert!(mapped.records == packed.records && mapped.ends == packed.ends);
+        assert!(mapped.radii == packed.radii && mapped.whole == packed.whole);
         // What packs: all strand segments but those whose points do not come back; three kinds
         // a block stay whole.
         let whole = packed.whole().len();

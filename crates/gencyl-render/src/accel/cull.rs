@@ -125,23 +125,23 @@ pub const SPLIT_GAIN: f64 = 0.75;
 /// the level's pieces' control points, each grown by the piece's reach.
 pub fn hull_areas(c: &GeneralizedCylinder) -> [f64; MAX_PIECE_LEVEL as usize + 1] {
     fn down(
-        c: &GeneralizedCylinder,
+        reach: [f64; 2],
         piece: Piece,
         q: [DVec3; 4],
         areas: &mut [f64; MAX_PIECE_LEVEL as usize + 1],
     ) {
         let lo = q.iter().fold(DVec3::INFINITY, |m, p| m.min(*p));
         let hi = q.iter().fold(DVec3::NEG_INFINITY, |m, p| m.max(*p));
-        let e = hi - lo + DVec3::splat(2.0 * reach_on(c, piece));
+        let e = hi - lo + DVec3::splat(2.0 * piece_reach(reach, piece));
         areas[piece.level() as usize] += e.x * e.y + e.y * e.z + e.z * e.x;
         if piece.level() < MAX_PIECE_LEVEL {
             let [a, b] = halves(&q);
-            down(c, Piece(2 * piece.0), a, areas);
-            down(c, Piece(2 * piece.0 + 1), b, areas);
+            down(reach, Piece(2 * piece.0), a, areas);
+            down(reach, Piece(2 * piece.0 + 1), b, areas);
         }
     }
     let mut areas = [0.0; MAX_PIECE_LEVEL as usize + 1];
-    down(c, Piece::WHOLE, c.axis().points, &mut areas);
+    down(c.reach_ends(), Piece::WHOLE, c.axis().points, &mut areas);
     areas
 }
 
@@ -149,7 +149,7 @@ pub fn hull_areas(c: &GeneralizedCylinder) -> [f64; MAX_PIECE_LEVEL as usize + 1
 /// roots of `a'`), grown by [`reach_on`]. Never looser than the cylinder's own
 /// [`GeneralizedCylinder::bounds`], which grows the control points' box.
 pub fn piece_bounds(c: &GeneralizedCylinder, piece: Piece) -> Aabb {
-    bezier_piece_bounds(c, piece, piece.sub_bezier(c.axis().points))
+    PieceBounds::of(c).bezier(piece, piece.sub_bezier(c.axis().points))
 }
 
 /// [`piece_bounds`] of every piece of level `level` under `piece`
@@ -163,64 +163,87 @@ pub fn pieces_bounds_under(
     each: &mut impl FnMut(Piece, Aabb),
 ) {
     fn down(
-        c: &GeneralizedCylinder,
+        bounds: &PieceBounds,
         piece: Piece,
         q: [DVec3; 4],
         level: u32,
         each: &mut impl FnMut(Piece, Aabb),
     ) {
         if piece.level() >= level {
-            each(piece, bezier_piece_bounds(c, piece, q));
+            each(piece, bounds.bezier(piece, q));
             return;
         }
         let [a, b] = halves(&q);
-        down(c, Piece(2 * piece.0), a, level, each);
-        down(c, Piece(2 * piece.0 + 1), b, level, each);
+        down(bounds, Piece(2 * piece.0), a, level, each);
+        down(bounds, Piece(2 * piece.0 + 1), b, level, each);
     }
-    down(c, piece, piece.sub_bezier(c.axis().points), level, each);
+    let axis = c.axis().points;
+    down(
+        &PieceBounds::of(c),
+        piece,
+        piece.sub_bezier(axis),
+        level,
+        each,
+    );
 }
 
-/// The box of `piece`, whose axis control points are `p`.
-fn bezier_piece_bounds(c: &GeneralizedCylinder, piece: Piece, p: [DVec3; 4]) -> Aabb {
-    let mut lo = p[0].min(p[3]);
-    let mut hi = p[0].max(p[3]);
-    // a'(u)_k is the Bernstein quadratic 3 (h0 (1-u)^2 + 2 h1 u (1-u) + h2 u^2).
-    let h = [p[1] - p[0], p[2] - p[1], p[3] - p[2]];
-    for k in 0..3 {
-        let (h0, h1, h2) = (h[0][k], h[1][k], h[2][k]);
-        let a = h0 - 2.0 * h1 + h2;
-        let b = 2.0 * (h1 - h0);
-        let mut roots = [f64::NAN; 2];
-        if a.abs() <= 1e-12 * (h0.abs() + h1.abs() + h2.abs()) {
-            if b != 0.0 {
-                roots[0] = -h0 / b;
-            }
-        } else {
-            let disc = b * b - 4.0 * a * h0;
-            if disc >= 0.0 {
-                let q = -0.5 * (b + b.signum() * disc.sqrt());
-                roots = [q / a, if q != 0.0 { h0 / q } else { f64::NAN }];
-            }
-        }
-        for u in roots {
-            if u > 0.0 && u < 1.0 {
-                let v = 1.0 - u;
-                let x = v * v * v * p[0][k]
-                    + 3.0 * u * v * (v * p[1][k] + u * p[2][k])
-                    + u * u * u * p[3][k];
-                lo[k] = lo[k].min(x);
-                hi[k] = hi[k].max(x);
-            }
+/// What bounding a cylinder's pieces takes from the cylinder, computed once for all of them.
+struct PieceBounds {
+    /// [`GeneralizedCylinder::reach_ends`].
+    reach: [f64; 2],
+    /// [`GeneralizedCylinder::bounds`].
+    own: Aabb,
+}
+
+impl PieceBounds {
+    fn of(c: &GeneralizedCylinder) -> Self {
+        PieceBounds {
+            reach: c.reach_ends(),
+            own: c.bounds(),
         }
     }
-    // Pad for rounding in the halving and the evaluation (relative to the coordinates).
-    let pad = reach_on(c, piece)
-        + 1e-12 * (hi - lo).max_element()
-        + 64.0 * f64::EPSILON * lo.abs().max(hi.abs()).max_element();
-    let own = c.bounds();
-    Aabb {
-        min: (lo - DVec3::splat(pad)).max(own.min),
-        max: (hi + DVec3::splat(pad)).min(own.max),
+
+    /// The box of `piece`, whose axis control points are `p`.
+    fn bezier(&self, piece: Piece, p: [DVec3; 4]) -> Aabb {
+        let mut lo = p[0].min(p[3]);
+        let mut hi = p[0].max(p[3]);
+        // a'(u)_k is the Bernstein quadratic 3 (h0 (1-u)^2 + 2 h1 u (1-u) + h2 u^2).
+        let h = [p[1] - p[0], p[2] - p[1], p[3] - p[2]];
+        for k in 0..3 {
+            let (h0, h1, h2) = (h[0][k], h[1][k], h[2][k]);
+            let a = h0 - 2.0 * h1 + h2;
+            let b = 2.0 * (h1 - h0);
+            let mut roots = [f64::NAN; 2];
+            if a.abs() <= 1e-12 * (h0.abs() + h1.abs() + h2.abs()) {
+                if b != 0.0 {
+                    roots[0] = -h0 / b;
+                }
+            } else {
+                let disc = b * b - 4.0 * a * h0;
+                if disc >= 0.0 {
+                    let q = -0.5 * (b + b.signum() * disc.sqrt());
+                    roots = [q / a, if q != 0.0 { h0 / q } else { f64::NAN }];
+                }
+            }
+            for u in roots {
+                if u > 0.0 && u < 1.0 {
+                    let v = 1.0 - u;
+                    let x = v * v * v * p[0][k]
+                        + 3.0 * u * v * (v * p[1][k] + u * p[2][k])
+                        + u * u * u * p[3][k];
+                    lo[k] = lo[k].min(x);
+                    hi[k] = hi[k].max(x);
+                }
+            }
+        }
+        // Pad for rounding in the halving and the evaluation (relative to the coordinates).
+        let pad = piece_reach(self.reach, piece)
+            + 1e-12 * (hi - lo).max_element()
+            + 64.0 * f64::EPSILON * lo.abs().max(hi.abs()).max_element();
+        Aabb {
+            min: (lo - DVec3::splat(pad)).max(self.own.min),
+            max: (hi + DVec3::splat(pad)).min(self.own.max),
+        }
     }
 }
 

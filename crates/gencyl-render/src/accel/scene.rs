@@ -69,7 +69,9 @@ impl Scene {
         let levels: Vec<u32> = cylinders.par_iter().map(level_for).collect();
         // Packed before the BVH is built, so the build's memory adds to the packed cylinders,
         // not to the whole ones.
-        let cylinders = PackedCylinders::new(cylinders);
+        let cylinders = PackedCylinders::new_mapped(cylinders, |cylinders, record| {
+            cylinders.par_iter().map(record).collect()
+        });
         let bvh = Bvh::build_grouped(
             cylinders.len(),
             |i| 1 << levels[i],

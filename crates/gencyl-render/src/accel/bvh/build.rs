@@ -1,7 +1,9 @@
 //! Building a [`Bvh`]: binned surface area heuristic as pbrt builds it ([`BINS`] bins, the
 //! widest axis or all three for the largest nodes, the exact SAH over sorted primitives in
 //! small nodes, halving splits past a depth bound), each binary tree then collapsed
-//! depth-first into 4-wide [`Node4`]s.
+//! depth-first into 4-wide [`Node4`]s. The tree depends on the primitives' boxes and keys
+//! only, not on the order they come in: equal centres are ordered by key wherever the build
+//! sorts or selects.
 //!
 //! Large inputs are first grouped into clusters, as HLBVH does (Pantaleoni and Luebke 2010;
 //! Garanzha, Pantaleoni and McAllister 2011): each primitive's centroid gets a Morton code on
@@ -48,7 +50,9 @@ pub(super) fn up(x: f64) -> f32 {
 }
 
 /// A primitive during the build: its box (rounded outward), its box's centre, its key, and
-/// its cluster's Morton code ([`cluster_bits`]; 0 until the clusters are formed). 44 bytes.
+/// a code: its cluster's Morton code ([`cluster_bits`]; 0 until the clusters are formed),
+/// then, while its cluster's tree is built, its bin on the axis last binned ([`bin_axis`]).
+/// 44 bytes.
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 struct Prim {
@@ -91,6 +95,16 @@ impl Prim {
     #[inline]
     fn centroid(&self, k: usize) -> f64 {
         self.center[k] as f64
+    }
+
+    /// A sort key: the centre on axis `k` (in `f32`'s total order, as `f32::total_cmp`), then
+    /// the primitive's key.
+    #[inline]
+    fn order(&self, k: usize) -> u64 {
+        let bits = self.center[k].to_bits();
+        // Negative values count down: flip them all; positive ones go above them.
+        let ordered = bits ^ (((bits as i32) >> 31) as u32 | 1 << 31);
+        u64::from(ordered) << 32 | u64::from(self.index)
     }
 
     /// The box's corners and centre as lanes `x, y, z` and a fourth that nothing reads
@@ -229,9 +243,9 @@ fn measure(prims: &[Prim]) -> Measure {
     }
 }
 
-/// The bins of a node on each axis: per bin the primitives' count and [`Measure`] (so a
+/// The bins of a node on one axis: per bin the primitives' count and [`Measure`] (so a
 /// split's two sides are measured without another pass).
-type Binning = [[(u32, Measure); BINS]; 3];
+type Bins = [(u32, Measure); BINS];
 
 /// The centroid range `[lo, lo + ext]` of a node on each axis, for binning.
 #[derive(Clone, Copy, Debug)]
@@ -261,29 +275,24 @@ impl Range3 {
     }
 }
 
-/// Bins `prims` on every axis, or (`axis = Some(k)`) on axis `k` only.
-fn bin_prims(prims: &[Prim], range: &Range3, axis: Option<usize>) -> Binning {
-    let mut b = [[(0, Measure::EMPTY); BINS]; 3];
-    let axes = match axis {
-        Some(k) => k..k + 1,
-        None => 0..3,
-    };
+/// Bins `prims` on axis `k`, and notes each one's bin in its `code` (which the partition
+/// that follows reads; the Morton codes are no longer needed once the build runs).
+fn bin_axis(prims: &mut [Prim], range: &Range3, k: usize) -> Bins {
+    let mut b = [(0, Measure::EMPTY); BINS];
     for p in prims {
-        for k in axes.clone() {
-            let bin = &mut b[k][range.bin(p, k)];
-            bin.0 += 1;
-            bin.1.add(p);
-        }
+        let i = range.bin(p, k);
+        p.code = i as u32;
+        b[i].0 += 1;
+        b[i].1.add(p);
     }
     b
 }
 
-fn merge(mut a: Binning, b: Binning) -> Binning {
-    for k in 0..3 {
-        for i in 0..BINS {
-            a[k][i].0 += b[k][i].0;
-            a[k][i].1 = a[k][i].1.union(&b[k][i].1);
-        }
+/// The bins of two parts of a node's primitives, together.
+fn merge(mut a: Bins, b: Bins) -> Bins {
+    for (x, y) in a.iter_mut().zip(&b) {
+        x.0 += y.0;
+        x.1 = x.1.union(&y.1);
     }
     a
 }
@@ -385,14 +394,13 @@ fn build(
     let widest = ext.max_position();
     // Halves along the widest centroid extent; the halves are measured by a pass each.
     let halve = |prims: &mut [Prim]| {
-        prims.select_nth_unstable_by(n / 2, |a, b| {
-            a.centroid(widest).total_cmp(&b.centroid(widest))
-        });
+        prims.select_nth_unstable_by(n / 2, |a, b| a.order(widest).cmp(&b.order(widest)));
         let (l, r) = prims.split_at(n / 2);
         (n / 2, measure(l), measure(r))
     };
     let (mid, left, right) = if ext.max_element() <= 0.0 {
-        // All centroids coincide: no split separates them; cut the list in half.
+        // All centroids coincide: no split separates them; cut the list (in key order) in half.
+        prims.sort_unstable_by_key(|p| p.index);
         if n <= MAX_LEAF {
             return leaf(arena, bounds, start, n);
         }
@@ -402,33 +410,37 @@ fn build(
         // Halve, to bound the depth.
         halve(prims)
     } else {
-        // Large nodes try every axis; smaller ones only the widest, as pbrt does.
-        let axes = if n >= ALL_AXES { None } else { Some(widest) };
-        let bins = if n >= PARALLEL_BIN {
-            prims
-                .par_chunks(PARALLEL_BIN / 4)
-                .map(|c| bin_prims(c, &range, axes))
-                .reduce_with(merge)
-                .expect("non-empty")
+        // Large nodes try every axis; smaller ones only the widest, as pbrt does. The axis
+        // binned last leaves its bins in the primitives' codes.
+        let every = [0, 1, 2];
+        let axes: &[usize] = if n >= ALL_AXES {
+            &every
         } else {
-            bin_prims(prims, &range, axes)
+            std::slice::from_ref(&widest)
         };
+        let area = bounds.half_area();
         // SAH: cost of a split after bin i on axis k is
         // TRAVERSAL_COST + (n_left area_left + n_right area_right) / area.
-        let area = bounds.half_area();
-        let mut best = (f64::INFINITY, 0usize, 0usize);
-        for k in 0..3 {
-            if ext[k] <= 0.0 || axes.is_some_and(|a| a != k) {
-                continue;
-            }
-            let bins = std::array::from_fn(|i| (bins[k][i].0 as usize, bins[k][i].1.bounds));
-            if let Some((cost, i)) = best_split(&bins)
+        let mut best = (f64::INFINITY, 0usize, 0usize, [(0, Measure::EMPTY); BINS]);
+        for &k in axes.iter().filter(|&&k| ext[k] > 0.0) {
+            let bins = if n >= PARALLEL_BIN {
+                prims
+                    .par_chunks_mut(PARALLEL_BIN / 4)
+                    .map(|c| bin_axis(c, &range, k))
+                    .reduce_with(merge)
+                    .expect("non-empty")
+            } else {
+                bin_axis(prims, &range, k)
+            };
+            let boxes = std::array::from_fn(|i| (bins[i].0 as usize, bins[i].1.bounds));
+            if let Some((cost, i)) = best_split(&boxes)
                 && cost < best.0
             {
-                best = (cost, k, i);
+                best = (cost, k, i, bins);
             }
         }
-        let (cost, k, split) = best;
+        let last = axes.iter().rev().find(|&&k| ext[k] > 0.0).copied();
+        let (cost, k, split, bins) = best;
         let cost = TRAVERSAL_COST
             + if area > 0.0 && area.is_finite() {
                 cost / area
@@ -438,10 +450,12 @@ fn build(
         if n <= MAX_LEAF && n as f64 <= cost {
             return leaf(arena, bounds, start, n);
         }
-        let m = if cost.is_finite() {
-            partition(prims, |p| range.bin(p, k) <= split)
-        } else {
+        let m = if !cost.is_finite() {
             0
+        } else if last == Some(k) {
+            partition(prims, |p| p.code as usize <= split)
+        } else {
+            partition(prims, |p| range.bin(p, k) <= split)
         };
         if m == 0 || m == n {
             halve(prims)
@@ -449,7 +463,7 @@ fn build(
             let side = |bins: &[(u32, Measure)]| {
                 bins.iter().fold(Measure::EMPTY, |acc, (_, m)| acc.union(m))
             };
-            (m, side(&bins[k][..=split]), side(&bins[k][split + 1..]))
+            (m, side(&bins[..=split]), side(&bins[split + 1..]))
         }
     };
     let (l, r) = prims.split_at_mut(mid);
@@ -468,10 +482,11 @@ fn build_small(prims: &mut [Prim], start: usize, depth: usize, arena: &mut Vec<B
     let cb = node.center_range();
     let ext = cb.1 - cb.0;
     let k = ext.max_position();
+    // By key among equal centres, so that the tree does not depend on the order given.
+    prims.sort_unstable_by_key(|p| p.order(k));
     if ext.max_element() <= 0.0 && n <= MAX_LEAF {
         return leaf(arena, bounds, start, n);
     }
-    prims.sort_unstable_by(|a, b| a.centroid(k).total_cmp(&b.centroid(k)));
     let mid = if ext.max_element() <= 0.0 || depth >= MAX_SAH_DEPTH {
         n / 2
     } else {
@@ -562,8 +577,16 @@ fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -
 }
 
 /// A cost of [`collapse`]'s dynamic program: the wide nodes' total area, then their count.
-#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct Cost(f64, u32);
+
+impl Cost {
+    /// Whether `self` is less: by area, then by count (areas are finite).
+    #[inline]
+    fn less(self, o: Cost) -> bool {
+        self.0 < o.0 || (self.0 == o.0 && self.1 < o.1)
+    }
+}
 
 impl std::ops::Add for Cost {
     type Output = Cost;
@@ -604,25 +627,22 @@ impl CollapsePlan {
                 continue;
             };
             let (ca, cb) = (cost[a as usize - first], cost[b as usize - first]);
-            // The children in at most `j` and `k - j` slots: the best `j` (the first of equal
-            // ones).
-            let best = |k: usize| {
-                let mut m = (ca[0] + cb[k - 2], 1u8);
-                for j in 2..k {
-                    let c = ca[j - 1] + cb[k - j - 1];
-                    if c < m.0 {
-                        m = (c, j as u8);
-                    }
-                }
-                m
+            // The children in at most `j` and `k - j` slots, for each `k`: the best `j` (the
+            // first of equal ones).
+            let first_least = |options: &[(Cost, u8)]| {
+                options[1..]
+                    .iter()
+                    .fold(options[0], |m, &o| if o.0.less(m.0) { o } else { m })
             };
-            let (inside, j) = best(4);
-            own[me] = j;
-            let wide = Cost(node.bounds.half_area(), 1) + inside;
+            let two = (ca[0] + cb[0], 1);
+            let three = first_least(&[(ca[0] + cb[1], 1), (ca[1] + cb[0], 2)]);
+            let four = first_least(&[(ca[0] + cb[2], 1), (ca[1] + cb[1], 2), (ca[2] + cb[0], 3)]);
+            own[me] = four.1;
+            let wide = Cost(node.bounds.half_area(), 1) + four.0;
             cost[me][0] = wide;
-            for k in 2..=4 {
-                let (c, j) = best(k);
-                (cost[me][k - 1], spread[me][k - 1]) = if c <= wide { (c, j) } else { (wide, 0) };
+            for (k, (c, j)) in [two, three, four].into_iter().enumerate() {
+                (cost[me][k + 1], spread[me][k + 1]) =
+                    if wide.less(c) { (wide, 0) } else { (c, j) };
             }
         }
         CollapsePlan { spread, own, first }
@@ -917,8 +937,9 @@ fn build_clustered(
     prims.par_iter_mut().for_each(|p| {
         p.code = spread(cell(p, 0)) << 2 | spread(cell(p, 1)) << 1 | spread(cell(p, 2));
     });
-    // By key too, so that a cluster's order (and its tree) is fixed by the keys.
-    prims.par_sort_unstable_by_key(|p| u64::from(p.code) << 32 | u64::from(p.index));
+    // By code alone: a cluster's tree does not depend on the order of its primitives (its
+    // splits and leaves are fixed by their boxes and keys).
+    prims.par_sort_unstable_by_key(|p| p.code);
     let mut starts = vec![0];
     starts.extend((1..n).filter(|&i| prims[i].code != prims[i - 1].code));
     starts.push(n);
@@ -1112,10 +1133,17 @@ impl Bvh {
     /// primitives on: tests reach the clustered build with small inputs this way.
     #[cfg(test)]
     pub(super) fn build_clustered_from(boxes: &[Aabb], cluster_min: usize) -> Bvh {
+        let keys: Vec<u32> = (0..boxes.len() as u32).collect();
+        Self::build_clustered_keyed(boxes, &keys, cluster_min)
+    }
+
+    /// [`Bvh::build_clustered_from`] with keys.
+    #[cfg(test)]
+    pub(super) fn build_clustered_keyed(boxes: &[Aabb], keys: &[u32], cluster_min: usize) -> Bvh {
         let prims = boxes
             .iter()
-            .zip(0..)
-            .map(|(b, i)| Prim::new(b, i))
+            .zip(keys)
+            .map(|(b, &key)| Prim::new(b, key))
             .collect();
         Self::build_prims(prims, cluster_min)
     }

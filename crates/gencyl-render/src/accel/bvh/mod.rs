@@ -1191,6 +1191,53 @@ mod tests {
     }
 
     #[test]
+    fn the_tree_does_not_depend_on_the_order_given() {
+        // Fibers, and boxes on a grid whose centres tie on every axis (the build's sorts and
+        // selections then order by key); enough for the clustered build, and small clusters
+        // too.
+        let params = FiberParams {
+            count: 30_000,
+            ..FiberParams::default()
+        };
+        let mut boxes = fiber_boxes(&params, 2);
+        for i in 0..4_000 {
+            let c = DVec3::new((i % 20) as f64, (i / 20 % 20) as f64, (i / 400) as f64) * 0.05;
+            let h = DVec3::splat(0.01 + 0.002 * (i % 3) as f64);
+            boxes.push(Aabb {
+                min: c - h,
+                max: c + h,
+            });
+        }
+        // Duplicates: equal boxes under other keys.
+        boxes.extend_from_within(..500);
+        assert!(boxes.len() >= CLUSTER_MIN);
+        let keys: Vec<u32> = (0..boxes.len() as u32).map(|i| i * 7 + 3).collect();
+        let mut order: Vec<usize> = (0..boxes.len()).collect();
+        let mut rng = Rng::from_seed(56);
+        for i in (1..order.len()).rev() {
+            order.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+        }
+        let shuffled = |v: &[u32]| order.iter().map(|&i| v[i]).collect::<Vec<u32>>();
+        let shuffled_boxes: Vec<Aabb> = order.iter().map(|&i| boxes[i]).collect();
+        let given = Bvh::build_keyed(&boxes, &keys);
+        let other = Bvh::build_keyed(&shuffled_boxes, &shuffled(&keys));
+        assert_eq!(given.root, other.root);
+        assert!(given.nodes == other.nodes, "nodes depend on the order");
+        assert_eq!(given.indices, other.indices, "leaves depend on the order");
+        // Small clusters, and clusters within clusters.
+        let given = Bvh::build_clustered_keyed(&boxes, &keys, 500);
+        let other = Bvh::build_clustered_keyed(&shuffled_boxes, &shuffled(&keys), 500);
+        assert!(
+            given.nodes == other.nodes,
+            "clustered nodes depend on the order"
+        );
+        assert_eq!(
+            given.indices, other.indices,
+            "clustered leaves depend on the order"
+        );
+    }
+
+    #[test]
     fn parallel_build_is_deterministic() {
         let params = FiberParams {
             count: 20_000,
