@@ -66,11 +66,16 @@ impl Scene {
             cylinders.len() <= Self::MAX_CYLINDERS,
             "at most 2^26 cylinders"
         );
-        let levels: Vec<u32> = cylinders.par_iter().map(level_for).collect();
         // Packed before the BVH is built, so the build's memory adds to the packed cylinders,
-        // not to the whole ones.
+        // not to the whole ones; each cylinder's pieces are chosen in the same pass.
+        let mut levels = Vec::new();
         let cylinders = PackedCylinders::new_mapped(cylinders, |cylinders, record| {
-            cylinders.par_iter().map(record).collect()
+            let records;
+            (records, levels) = cylinders
+                .par_iter()
+                .map(|c| (record(c), level_for(c)))
+                .unzip();
+            records
         });
         let bvh = Bvh::build_grouped(
             cylinders.len(),

@@ -632,7 +632,8 @@ pub(super) fn hair_cylinders(
                 .map_err(|(seg, e)| format!("{file}: strand {i}, segment {seg}: {e}"))
         })
         .collect();
-    let mut out = Vec::new();
+    // At its full size at once: growing it would copy (and first touch) it several times.
+    let mut out = Vec::with_capacity(built.iter().map(|b| b.as_ref().map_or(0, Vec::len)).sum());
     for b in built {
         out.extend(b?);
     }
