@@ -6,7 +6,8 @@
 //! at their joint, and most strands keep one radius: [`PackedCylinders`] stores a segment's
 //! first three world control points, its framing's reference and its rotation in a 120-byte
 //! record; its fourth point is the next record's first (the joint), or, at a strand's tip, kept
-//! aside; radii are stored once per run of segments that share them. A cylinder's data is then
+//! aside; radii are stored at the ends of the segments, once where consecutive segments share
+//! them (a strand's joint, or every segment of a strand of one radius). A cylinder's data is then
 //! one contiguous span (its record and the next one's first point), whose address is known
 //! without reading anything, so a BVH walk can ask for it early.
 //!
@@ -39,7 +40,9 @@ struct Packed {
     reference: DVec3,
     /// The sweep's rotation at `u = 0` and `u = 1`.
     rotation: [f64; 2],
-    /// Index of its radii in `radii`; for a whole cylinder, its index in `whole`.
+    /// Index of its radii at `u = 0` in `radii`, with [`Packed::TAPERED`] set when those at
+    /// `u = 1` are the next entry (else they are the same); for a whole cylinder, its index in
+    /// `whole`.
     radii: u32,
     /// The low bits: [`Packed::CAP_START`], [`Packed::CAP_END`], [`Packed::MAY_FOLD`],
     /// [`Packed::PROJECTED`], [`Packed::WHOLE`], [`Packed::JOINED`]; above
@@ -57,6 +60,8 @@ impl Packed {
     /// `p3` is the next record's `p0`.
     const JOINED: u32 = 32;
     const END_SHIFT: u32 = 6;
+    /// In `radii`: the radii at `u = 1` are the entry after those at `u = 0`.
+    const TAPERED: u32 = 1 << 31;
 }
 
 /// A cylinder's own record in a [`PackedCylinders`], as [`PackedCylinders::new_mapped`] makes
@@ -64,11 +69,11 @@ impl Packed {
 #[derive(Clone, Copy, Debug)]
 pub struct Record(Packed);
 
-/// The sweep's radii, `[A0, A1]` and `[B0, B1]` (see [`HairSweep`]).
+/// The sweep's radii at one end of a segment, `A` and `B` (see [`HairSweep`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Radii {
-    major: [f64; 2],
-    minor: [f64; 2],
+    major: f64,
+    minor: f64,
 }
 
 /// Cylinders, numbered in the order given, stored compactly (module docs).
@@ -78,7 +83,8 @@ pub struct PackedCylinders {
     records: Vec<Packed>,
     /// The fourth control points of the packed cylinders that are not joined to the next.
     ends: Vec<DVec3>,
-    /// Radii; consecutive packed cylinders with equal radii share them.
+    /// Radii at the segments' ends; a segment's end and the next one's start share an entry
+    /// when they are equal, and so do the ends of a segment of constant radii.
     radii: Vec<Radii>,
     /// The cylinders that did not pack.
     whole: Vec<GeneralizedCylinder>,
@@ -160,14 +166,18 @@ impl PackedCylinders {
         let record = &mut self.records[i];
         record.flags |= (self.ends.len() as u32) << Packed::END_SHIFT;
         self.ends.push(c.origin + c.axis.points[3]);
-        let radii = Radii {
-            major: c.sweep.major,
-            minor: c.sweep.minor,
-        };
-        if self.radii.last().map(|r| r.bits()) != Some(radii.bits()) {
-            self.radii.push(radii);
+        let [start, end] = [0, 1].map(|k| Radii {
+            major: c.sweep.major[k],
+            minor: c.sweep.minor[k],
+        });
+        if self.radii.last().map(|r| r.bits()) != Some(start.bits()) {
+            self.radii.push(start);
         }
         record.radii = self.radii.len() as u32 - 1;
+        if end.bits() != start.bits() {
+            self.radii.push(end);
+            record.radii |= Packed::TAPERED;
+        }
         debug_assert!(self.unpack(i) == c, "a packed cylinder rebuilds as itself");
     }
 
@@ -228,10 +238,14 @@ impl PackedCylinders {
     /// The sweep of packed record `r`: its radii and rotation.
     #[inline]
     fn sweep(&self, r: &Packed) -> HairSweep {
-        let radii = self.radii[r.radii as usize];
+        let start = (r.radii & !Packed::TAPERED) as usize;
+        let [a, b] = [
+            self.radii[start],
+            self.radii[start + usize::from(r.radii & Packed::TAPERED != 0)],
+        ];
         HairSweep {
-            major: radii.major,
-            minor: radii.minor,
+            major: [a.major, b.major],
+            minor: [a.minor, b.minor],
             rotation: r.rotation,
         }
     }
@@ -341,8 +355,8 @@ impl PackedCylinders {
 
 impl Radii {
     /// The radii's bits.
-    fn bits(&self) -> [u64; 4] {
-        [self.major[0], self.major[1], self.minor[0], self.minor[1]].map(f64::to_bits)
+    fn bits(&self) -> [u64; 2] {
+        [self.major, self.minor].map(f64::to_bits)
     }
 }
 
@@ -525,8 +539,8 @@ mod tests {
         assert_eq!(packed.ends.len(), 2, "each strand's tip kept aside");
         assert_eq!(
             packed.radii.len(),
-            1 + 4,
-            "a tapered strand: radii a segment"
+            1 + 5,
+            "a tapered strand of 4 segments: radii at its 3 joints and 2 ends"
         );
         for (i, c) in both.iter().enumerate() {
             assert!(*packed.get(i) == *c, "segment {i}");
