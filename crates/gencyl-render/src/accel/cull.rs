@@ -203,14 +203,22 @@ impl PieceBounds {
         }
     }
 
-    /// The box of `piece`, whose axis control points are `p`.
+    /// The box of `piece`, whose axis control points are `p`: the end points' box, widened on
+    /// each axis `k` to the curve's values where `a'(u)_k` vanishes inside `(0, 1)`.
+    /// `a'(u)_k` is the Bernstein quadratic `3 (h0 (1-u)^2 + 2 h1 u (1-u) + h2 u^2)`,
+    /// `h_i = p_{i+1} - p_i`; where the three `h_i` have one strict sign it has none there (the
+    /// hull property: it lies between the least and the greatest), and the coordinate is
+    /// monotone (most axes of most hair pieces; a rounded difference keeps the true one's
+    /// sign).
     fn bezier(&self, piece: Piece, p: [DVec3; 4]) -> Aabb {
         let mut lo = p[0].min(p[3]);
         let mut hi = p[0].max(p[3]);
-        // a'(u)_k is the Bernstein quadratic 3 (h0 (1-u)^2 + 2 h1 u (1-u) + h2 u^2).
         let h = [p[1] - p[0], p[2] - p[1], p[3] - p[2]];
         for k in 0..3 {
             let (h0, h1, h2) = (h[0][k], h[1][k], h[2][k]);
+            if (h0 > 0.0 && h1 > 0.0 && h2 > 0.0) || (h0 < 0.0 && h1 < 0.0 && h2 < 0.0) {
+                continue;
+            }
             let a = h0 - 2.0 * h1 + h2;
             let b = 2.0 * (h1 - h0);
             let mut roots = [f64::NAN; 2];
