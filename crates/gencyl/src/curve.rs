@@ -198,8 +198,24 @@ impl CubicBezier {
         off(p[1]).max(off(p[2])) / len
     }
 
-    /// Smallest `|a'(u)|` over `[0, 1]`, to within a relative 1e-6 (sampled, then refined
-    /// around the smallest sample by golden-section search on the quartic `|a'|^2`).
+    /// A lower bound of `|a'(u)|` over `[0, 1]`, cheap: `min_i H_i.e` for the hodograph's
+    /// control points `H_i` and `e` the unit chord. `a'(u)` is a convex combination of the
+    /// `H_i` (Bernstein weights), so `a'(u).e >= min_i H_i.e`, and `|a'(u)| >= a'(u).e`. Near
+    /// the true minimum for a nearly straight curve (hair); zero or negative, bounding nothing,
+    /// where the curve turns back on its chord (or has none).
+    pub fn speed_floor(&self) -> f64 {
+        let chord = self.points[3] - self.points[0];
+        let Some(e) = chord.try_normalize() else {
+            return 0.0;
+        };
+        self.hodograph()
+            .iter()
+            .map(|h| h.dot(e))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Smallest `|a'(u)|` over `[0, 1]`: `|a'|` at the ends and at the zeros in `(0, 1)` of
+    /// the cubic `a'.a''` (the critical points of the quartic `|a'|^2`).
     pub fn min_speed(&self) -> f64 {
         // a'(u) = A + B u + C u^2 (power form of the hodograph), so |a'|^2 is a quartic whose
         // critical points are the roots of a'.a'' = A.B + (2 A.C + B.B) u + 3 B.C u^2 + 2 C.C u^3.
@@ -457,6 +473,47 @@ mod tests {
                 m <= sampled + 1e-12 && m >= sampled - 1e-6 * (1.0 + sampled),
                 "min speed {m} vs sampled {sampled} for {c:?}"
             );
+            assert!(
+                c.speed_floor() <= sampled * (1.0 + 1e-12),
+                "floor for {c:?}"
+            );
         }
+    }
+
+    /// The cheap floor never exceeds the sampled least speed, and on gently bent curves (hair
+    /// segments) it is within a few percent of it, so it decides the cusp test there.
+    #[test]
+    fn speed_floor_bounds_the_least_speed_from_below() {
+        let mut x = 0.7f64;
+        let mut next = || {
+            x = (x * 3.7 + 0.13).fract();
+            x * 2.0 - 1.0
+        };
+        let mut tight = 0;
+        for i in 0..400 {
+            // From straight to strongly bent, at scales 1e-6 to 1e4.
+            let bend = [0.0, 0.01, 0.1, 1.0, 3.0][i % 5];
+            let scale = 10f64.powi((i % 11) as i32 - 6);
+            let dir = DVec3::new(next(), next(), next()).normalize_or(DVec3::X);
+            let points = [0.0, 1.0, 2.0, 3.0]
+                .map(|k| (dir * k + DVec3::new(next(), next(), next()) * bend) * scale);
+            let c = CubicBezier::new(points);
+            let sampled = (0..=20_000)
+                .map(|j| c.d1(j as f64 / 20_000.0).length())
+                .fold(f64::INFINITY, f64::min);
+            let floor = c.speed_floor();
+            assert!(
+                floor <= sampled * (1.0 + 1e-12),
+                "{floor} > {sampled} for {c:?}"
+            );
+            if bend <= 0.01 {
+                assert!(
+                    floor >= 0.9 * sampled,
+                    "{floor} far below {sampled} for {c:?}"
+                );
+                tight += 1;
+            }
+        }
+        assert_eq!(tight, 160);
     }
 }

@@ -383,17 +383,25 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             .hodograph()
             .iter()
             .fold(0.0f64, |m, h| m.max(h.length()));
-        let min_speed = unit.min_speed();
-        if min_speed <= CUSP_TOLERANCE * max_speed {
-            let at = (0..=1000)
-                .map(|i| i as f64 / 1000.0)
-                .min_by(|&a, &b| unit.d1(a).length().total_cmp(&unit.d1(b).length()))
-                .unwrap_or(0.0);
-            return Err(GeometryError::Cusp {
-                min_speed: min_speed * extent,
-                max_speed: max_speed * extent,
-                at,
-            });
+        // min |a'|: a cheap lower bound (the floor, less far more than its rounding), which
+        // settles the cusp and fold tests for all but sharply bent axes; the least speed itself
+        // where it does not.
+        let floor = (unit.speed_floor() * (1.0 - 1e-12)).max(0.0);
+        let mut least = None;
+        let mut min_speed = || *least.get_or_insert_with(|| unit.min_speed());
+        if floor <= 2.0 * CUSP_TOLERANCE * max_speed {
+            let min_speed = min_speed();
+            if min_speed <= CUSP_TOLERANCE * max_speed {
+                let at = (0..=1000)
+                    .map(|i| i as f64 / 1000.0)
+                    .min_by(|&a, &b| unit.d1(a).length().total_cmp(&unit.d1(b).length()))
+                    .unwrap_or(0.0);
+                return Err(GeometryError::Cusp {
+                    min_speed: min_speed * extent,
+                    max_speed: max_speed * extent,
+                    at,
+                });
+            }
         }
         let framing = framing(&local)?;
         let [l0, l1] = sweep.scale_bound();
@@ -406,7 +414,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         .filter(|s| !s.is_empty())
         .map(Box::new);
         // On the axis scaled to unit extent (r kappa does not change), so no square overflows.
-        let may_fold = Self::fold_possible(&unit, r / extent, min_speed);
+        let may_fold = Self::fold_possible(&unit, r / extent, floor)
+            && Self::fold_possible(&unit, r / extent, min_speed());
         Ok(GeneralizedCylinder {
             axis: local,
             origin,
@@ -454,7 +463,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// cone, has a positive component along their normalised sum), so the axis runs one way
     /// along that direction, turns by less than half a turn and cannot loop back onto itself.
     /// (A sufficient test, with 1% to spare; hair never comes near it.)
-    /// `min_speed` is `min|a'|` ([`CubicBezier::min_speed`]).
+    /// `min_speed` is `min|a'|` ([`CubicBezier::min_speed`]) or a lower bound of it (then the
+    /// test is more cautious still).
     fn fold_possible(axis: &CubicBezier, r: f64, min_speed: f64) -> bool {
         let h = axis.hodograph();
         let w = h.iter().map(|v| v.normalize_or_zero()).sum::<DVec3>();
@@ -1410,5 +1420,80 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The cusp and fold tests decided with the exact least speed, for axes from straight to
+    /// nearly cusped (at `u = 1/2`, or nearly stopped at the root) and radii from 1e-6 to half
+    /// the axis and near where the curvature test turns: the cheap floor that settles most of
+    /// them never changes a decision.
+    #[test]
+    fn the_speed_floor_never_changes_the_cusp_or_fold_decision() {
+        let mut x = 0.37f64;
+        let mut next = || {
+            x = (x * 3.7 + 0.19).fract();
+            x * 2.0 - 1.0
+        };
+        let (mut folds, mut cusps, mut kept) = (0, 0, 0);
+        for i in 0..3000 {
+            let bend = [0.0, 0.01, 0.3, 1.0, 3.0][i % 5];
+            let dir = DVec3::new(next(), next(), next()).normalize_or(DVec3::X);
+            let mut points =
+                [0.0, 1.0, 2.0, 3.0].map(|k| dir * k + DVec3::new(next(), next(), next()) * bend);
+            if i % 7 == 0 {
+                // A cusp or nearly one: a'(1/2) = (H0 + 2 H1 + H2) / 4 vanishes where
+                // p2 = p0 + p1 - p3.
+                let lean = DVec3::new(next(), next(), next()) * 10f64.powi(-(i as i32 % 12));
+                points[2] = points[0] + points[1] - points[3] + lean;
+            }
+            if i % 7 == 1 {
+                // Nearly stopped at the root along the chord: |a'(0)| near the tolerance.
+                points[1] = points[0] + dir * 10f64.powf(-7.5 - 1.5 * (next() + 1.0));
+            }
+            let axis = CubicBezier::new(points);
+            let extent = points
+                .iter()
+                .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
+            let unit = CubicBezier::new(points.map(|p| (p - points[0]) / extent));
+            let max_speed = unit
+                .hodograph()
+                .iter()
+                .fold(0.0f64, |m, h| m.max(h.length()));
+            let least = unit.min_speed();
+            // Every other radius near where the curvature test turns: `r kappa = 0.99`,
+            // `kappa = max|a''| / min|a'|^2` on the unit axis.
+            let second = unit.second_hodograph();
+            let turn = 0.99 * least.powi(2) / second[0].length().max(second[1].length());
+            let r = if i % 2 == 0 {
+                10f64.powf(next() * 2.8 - 3.1)
+            } else {
+                extent * turn * (1.0 + 0.6 * next())
+            };
+            let built = GeneralizedCylinder::new(
+                axis,
+                Section::default(),
+                HairSweep::circular(r),
+                true,
+                None,
+            );
+            match built {
+                Err(GeometryError::Cusp { .. }) => {
+                    assert!(least <= CUSP_TOLERANCE * max_speed, "{axis:?}");
+                    cusps += 1;
+                }
+                Ok(c) => {
+                    assert!(least > CUSP_TOLERANCE * max_speed, "{axis:?}");
+                    let exact =
+                        GeneralizedCylinder::<Section>::fold_possible(&unit, r / extent, least);
+                    assert_eq!(c.may_fold(), exact, "{axis:?} r = {r}");
+                    folds += usize::from(exact);
+                    kept += 1;
+                }
+                Err(_) => {}
+            }
+        }
+        assert!(
+            cusps > 100 && folds > 500 && kept > 2000,
+            "{cusps} {folds} {kept}"
+        );
     }
 }
