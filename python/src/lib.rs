@@ -17,7 +17,8 @@ use gencyl_render::optics::Camera;
 use gencyl_render::optics::scanner::{CtSetup, Quantity};
 use gencyl_render::raycast::{self, BLOCK, part_number, rays_from_arrays};
 use gencyl_render::scene_file::{
-    FiberInput, Key, SceneDescription, SceneError, StrandInput, build_fiber, build_strand_from,
+    BuiltStrands, FiberInput, Key, SceneDescription, SceneError, StrandInput, StrandParts,
+    build_fiber, build_strand_from,
 };
 use gencyl_render::scenes::job::{self, PlanError, RenderRequest};
 use gencyl_render::scenes::phantom as phantoms;
@@ -423,15 +424,16 @@ impl PyScene {
                 ..Default::default()
             });
         }
-        let built: Vec<Result<Vec<GeneralizedCylinder>, (Key, String)>> =
+        let built: Vec<Result<StrandParts, (Key, String)>> =
             py.detach(|| inputs.into_par_iter().map(build_strand_from).collect());
-        let mut cylinders = Vec::new();
+        let mut strands = BuiltStrands::default();
         for (i, b) in built.into_iter().enumerate() {
-            cylinders.extend(b.map_err(|(key, m)| {
+            let (cylinders, controls) = b.map_err(|(key, m)| {
                 PyValueError::new_err(format!("strand {i}: {m} ({})", argument(key)))
-            })?);
+            })?;
+            strands.push(cylinders, &controls);
         }
-        let desc = SceneDescription::from_cylinders(cylinders);
+        let desc = SceneDescription::from_strands(strands);
         py.detach(|| PyScene::from_description(desc, "the strands".into()))
     }
 

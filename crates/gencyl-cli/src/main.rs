@@ -1444,7 +1444,7 @@ fn raycast_command(args: RaycastArgs) -> Result<()> {
         let t0 = Instant::now();
         let desc = SceneDescription::load(&args.scene)?;
         let t1 = Instant::now();
-        let scene = Scene::new(desc.cylinders);
+        let scene = Scene::with_strands(desc.cylinders, desc.strands);
         let t2 = Instant::now();
         let rays = raycast::read_rays(&args.rays)?;
         let t3 = Instant::now();

@@ -43,7 +43,7 @@ pub use cylinder::{
 };
 pub use frame::{Frame, FrameAt, Framing};
 pub use intersect::Method;
-pub use packed::{PackedCylinders, Record};
+pub use packed::{PackedCylinders, Record, StrandControls};
 pub use section::{BezierLoop, CrossSection, Section, UnitCircle};
-pub use strand::{Strand, StrandFraming, StrandSegment};
+pub use strand::{Strand, StrandFraming, StrandSegment, spline_segment};
 pub use sweep::{HairSweep, SweepRule};

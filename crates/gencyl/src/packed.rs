@@ -1,22 +1,33 @@
-//! Many cylinders stored compactly: a strand's segments share their joints' control points.
+//! Many cylinders stored compactly: a strand's segments share their control points.
 //!
 //! A [`GeneralizedCylinder`] is 224 bytes. Of a hair segment's, 96 are its axis (relative to its
 //! first control point, which is stored again as the origin), 48 its sweep (radii and rotation
-//! at both ends) and 32 its framing. A strand's consecutive segments share the control point
-//! at their joint, and most strands keep one radius: [`PackedCylinders`] stores a segment's
-//! first three world control points, its framing's reference and its rotation in a 120-byte
-//! record; its fourth point is the next record's first (the joint), or, at a strand's tip, kept
-//! aside; radii are stored at the ends of the segments, once where consecutive segments share
-//! them (a strand's joint, or every segment of a strand of one radius). A cylinder's data is then
-//! one contiguous span (its record and the next one's first point), whose address is known
-//! without reading anything, so a BVH walk can ask for it early.
+//! at both ends) and 32 its framing. [`PackedCylinders`] keeps, for every cylinder, a 56-byte
+//! record (its framing's reference, its rotation, where its radii and points are) and one
+//! world point, and the rest of its axis in one of two ways:
+//!
+//! - **A strand's segment** (named in [`StrandControls`]): its axis is the uniform B-spline
+//!   segment ([`spline_segment`]) over four consecutive control points `E_j .. E_{j+3}` of its
+//!   strand, and the point kept is `E_j`; so the next three cylinders' points are the rest
+//!   (the last three segments of a strand take the points beyond its last from a short tail,
+//!   three points a strand). 80 bytes a segment.
+//! - **Any other cylinder that packs**: the point kept is its first control point `p0`, and
+//!   `p1, p2` are kept aside, with `p3` too unless it is the next cylinder's `p0` (a chain of
+//!   segments sharing joints). 128 bytes (152 at a chain's end).
+//!
+//! Radii are stored at the ends of the segments, once where consecutive segments share them
+//! (a strand's joint, or every segment of a strand of one radius). A cylinder's record and its
+//! run of points lie at addresses known without reading anything, so a BVH walk can ask for
+//! them early.
 //!
 //! Nothing is approximated: [`PackedCylinders::get`] rebuilds the very cylinder that was packed
 //! (equal in every bit; the local axis is recomputed as `p_i - p_0` from the world points, the
-//! same subtraction that built it). A cylinder packs when its section is the unit circle, its
-//! frame is Frenet's or a projection frame, it has no frame switches, and its world points
-//! come back exactly (`(o + l_i) - o == l_i` for its local points `l_i` and origin `o`, which
-//! holds for nearly every axis); any other cylinder is kept whole.
+//! same subtraction that built it, and a strand's segment is taken as one only where its
+//! spline segment gives back exactly its origin and local points). A cylinder packs when its
+//! section is the unit circle, its frame is Frenet's or a projection frame, it has no frame
+//! switches, and its world points come back exactly (`(o + l_i) - o == l_i` for its local
+//! points `l_i` and origin `o`, which holds for nearly every axis); any other cylinder is kept
+//! whole.
 
 use std::borrow::Cow;
 
@@ -28,14 +39,13 @@ use crate::curve::CubicBezier;
 use crate::cylinder::GeneralizedCylinder;
 use crate::frame::Framing;
 use crate::section::{CrossSection, Section, UnitCircle};
+use crate::strand::spline_segment;
 use crate::sweep::{HairSweep, SweepRule};
 
-/// A packed cylinder (module docs), or a whole one's place in `whole`.
+/// A packed cylinder's record (module docs), or a whole one's place in `whole`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 struct Packed {
-    /// The first three control points `p0, p1, p2`, world coordinates.
-    points: [DVec3; 3],
     /// The projection frame's reference ([`Framing::Projected`]); zero for Frenet's frame.
     reference: DVec3,
     /// The sweep's rotation at `u = 0` and `u = 1`.
@@ -45,9 +55,13 @@ struct Packed {
     /// `whole`.
     radii: u32,
     /// The low bits: [`Packed::CAP_START`], [`Packed::CAP_END`], [`Packed::MAY_FOLD`],
-    /// [`Packed::PROJECTED`], [`Packed::WHOLE`], [`Packed::JOINED`]; above
-    /// [`Packed::END_SHIFT`], where `p3` is in `ends` when not joined.
+    /// [`Packed::PROJECTED`], [`Packed::WHOLE`], [`Packed::JOINED`], [`Packed::SPLINE`]; above
+    /// [`Packed::AVAIL_SHIFT`], for a strand's segment, how many of its four control points are
+    /// in `points` (1 to 4).
     flags: u32,
+    /// Where the rest of the axis is in `extra`: `p1, p2` (then `p3` unless joined), or a
+    /// strand's segment's tail (the control points past its strand's last in `points`).
+    extra: u32,
 }
 
 impl Packed {
@@ -57,9 +71,11 @@ impl Packed {
     const PROJECTED: u32 = 8;
     /// Kept whole in `whole` (did not pack).
     const WHOLE: u32 = 16;
-    /// `p3` is the next record's `p0`.
+    /// `p3` is the next cylinder's point (its `p0`).
     const JOINED: u32 = 32;
-    const END_SHIFT: u32 = 6;
+    /// A strand's segment: its axis is the spline segment of its four control points.
+    const SPLINE: u32 = 64;
+    const AVAIL_SHIFT: u32 = 7;
     /// In `radii`: the radii at `u = 1` are the entry after those at `u = 0`.
     const TAPERED: u32 = 1 << 31;
 }
@@ -68,6 +84,61 @@ impl Packed {
 /// it (opaque).
 #[derive(Clone, Copy, Debug)]
 pub struct Record(Packed);
+
+/// Strands among a list of cylinders, named by their B-spline control points with the
+/// reflected ends (as [`crate::Strand::spline_controls`] makes them): a strand whose first
+/// segment is cylinder `first` has its segment `j` at cylinder `first + j`, the spline segment
+/// ([`spline_segment`]) of its control points `j .. j + 4`. All the strands' points are kept
+/// in one array (a list of many small ones would pin the memory freed around them).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StrandControls {
+    points: Vec<DVec3>,
+    /// Each strand's first cylinder and its first point in `points` (it ends where the next
+    /// strand's begin).
+    starts: Vec<(usize, usize)>,
+}
+
+impl StrandControls {
+    /// Room for `strands` strands of `points` control points in all.
+    pub fn with_capacity(strands: usize, points: usize) -> Self {
+        StrandControls {
+            points: Vec::with_capacity(points),
+            starts: Vec::with_capacity(strands),
+        }
+    }
+
+    /// Adds a strand whose first segment is cylinder `first`, with its control points.
+    pub fn push(&mut self, first: usize, controls: &[DVec3]) {
+        self.starts.push((first, self.points.len()));
+        self.points.extend_from_slice(controls);
+    }
+
+    /// Adds `other`'s strands, their cylinders numbered from `offset`.
+    pub fn append(&mut self, other: &StrandControls, offset: usize) {
+        for (first, controls) in other.iter() {
+            self.push(first + offset, controls);
+        }
+    }
+
+    /// How many strands.
+    pub fn len(&self) -> usize {
+        self.starts.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.starts.is_empty()
+    }
+
+    /// Each strand's first cylinder and control points, in the order added.
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = (usize, &[DVec3])> + '_ {
+        (0..self.starts.len()).map(|s| {
+            let (first, start) = self.starts[s];
+            let end = self.starts.get(s + 1).map_or(self.points.len(), |n| n.1);
+            (first, &self.points[start..end])
+        })
+    }
+}
 
 /// The sweep's radii at one end of a segment, `A` and `B` (see [`HairSweep`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,10 +150,15 @@ struct Radii {
 /// Cylinders, numbered in the order given, stored compactly (module docs).
 #[derive(Clone, Debug, Default)]
 pub struct PackedCylinders {
-    /// One a cylinder, in order (a joined record's `p3` is the next record's `p0`).
+    /// One a cylinder, in order.
     records: Vec<Packed>,
-    /// The fourth control points of the packed cylinders that are not joined to the next.
-    ends: Vec<DVec3>,
+    /// One a cylinder: a strand's segment's first control point, another packed cylinder's
+    /// `p0` (zero for a whole one), and one past the end (so that a record's run of four is
+    /// always in bounds to ask for).
+    points: Vec<DVec3>,
+    /// The other packed cylinders' `p1, p2` (and `p3` where not joined), and the strands'
+    /// tails.
+    extra: Vec<DVec3>,
     /// Radii at the segments' ends; a segment's end and the next one's start share an entry
     /// when they are equal, and so do the ends of a segment of constant radii.
     radii: Vec<Radii>,
@@ -91,9 +167,9 @@ pub struct PackedCylinders {
 }
 
 impl PackedCylinders {
-    /// The most cylinders a store holds, 2^26 (a record names its end point in the 26 bits
-    /// its flags leave).
-    pub const MAX: usize = 1 << (32 - Packed::END_SHIFT);
+    /// The most cylinders a store holds, 2^26 (its indices into `extra`, three points a
+    /// cylinder at most, fit 32 bits).
+    pub const MAX: usize = 1 << 26;
 
     /// Packs `cylinders` (module docs), keeping their order.
     ///
@@ -102,15 +178,20 @@ impl PackedCylinders {
     /// With more than [`Self::MAX`] cylinders.
     pub fn new(cylinders: impl IntoIterator<Item = GeneralizedCylinder>) -> Self {
         let cylinders: Vec<GeneralizedCylinder> = cylinders.into_iter().collect();
-        Self::new_mapped(cylinders, |cylinders, record| {
-            cylinders.iter().map(record).collect()
-        })
+        Self::new_mapped(
+            cylinders,
+            &StrandControls::default(),
+            |cylinders, record| cylinders.iter().map(record).collect(),
+        )
     }
 
-    /// [`Self::new`], with each cylinder's own record made by `map(cylinders, record)`, which
-    /// must return `cylinders.iter().map(record)` collected, in order (a caller can map in
-    /// parallel; the records then take their first touch of fresh memory in parallel too).
-    /// The rest, joining a strand's records and sharing their radii, runs in order.
+    /// [`Self::new`], with the strands among the cylinders named (their segments are stored
+    /// by their control points where these give them back exactly; `strands` in order of
+    /// `first`, not overlapping: a span out of order, or reaching past the cylinders, is not
+    /// taken), and each cylinder's own record made by
+    /// `map(cylinders, record)`, which must return `cylinders.iter().map(record)` collected,
+    /// in order (a caller can map in parallel; the records then take their first touch of
+    /// fresh memory in parallel too). The rest runs in order.
     ///
     /// # Panics
     ///
@@ -118,6 +199,7 @@ impl PackedCylinders {
     /// cylinder.
     pub fn new_mapped(
         cylinders: Vec<GeneralizedCylinder>,
+        strands: &StrandControls,
         map: impl FnOnce(
             &[GeneralizedCylinder],
             &(dyn Fn(&GeneralizedCylinder) -> Record + Sync),
@@ -129,43 +211,122 @@ impl PackedCylinders {
         let mut out = PackedCylinders {
             // The records' own memory, written in place below.
             records: records.into_iter().map(|r| r.0).collect(),
+            points: Vec::with_capacity(cylinders.len() + 1),
             ..Default::default()
         };
+        // A strand's segments go by their control points where every one of them that packs
+        // gives back its axis exactly as its spline segment (a segment's points are the next
+        // ones' too, so all or none; one kept whole keeps its point in `points` all the same).
+        // A strand out of order or past the cylinders is not taken.
+        let mut last_end = 0;
+        let taken: Vec<(usize, &[DVec3])> = strands
+            .iter()
+            .filter(|&(first, controls)| {
+                let k = controls.len().saturating_sub(3);
+                if !(k > 0 && first >= last_end && first + k <= cylinders.len()) {
+                    return false;
+                }
+                last_end = first + k;
+                (0..k).all(|j| {
+                    let w = &controls[j..j + 4];
+                    out.records[first + j].flags & Packed::WHOLE != 0
+                        || gives_back(&cylinders[first + j], [w[0], w[1], w[2], w[3]])
+                })
+            })
+            .collect();
+        let mut spans = taken.into_iter();
+        let mut span = spans.next();
+        // The current strand's tail in `extra`, once a segment needs it.
+        let mut tail = None;
         for (i, c) in cylinders.into_iter().enumerate() {
-            out.settle(i, c);
+            while span.is_some_and(|(first, controls)| i >= first + controls.len() - 3) {
+                (span, tail) = (spans.next(), None);
+            }
+            match span {
+                Some((first, controls)) if i >= first => {
+                    out.settle_spline(i, c, first, controls, &mut tail)
+                }
+                _ => out.settle(i, c),
+            }
         }
-        out.ends.shrink_to_fit();
+        // One past the end: a record's run of four points is always an address in bounds.
+        out.points.push(DVec3::ZERO);
+        out.extra.shrink_to_fit();
         out.radii.shrink_to_fit();
         out.whole.shrink_to_fit();
         out
     }
 
-    /// Completes record `i` (made by [`Self::pack`], all before it settled): a cylinder that
-    /// did not pack is kept whole; a packed one is joined to the record before it where it
-    /// starts at that one's end, and takes its radii's place.
-    fn settle(&mut self, i: usize, c: GeneralizedCylinder) {
+    /// Completes record `i`, segment `j = i - first` of the strand `controls` whose segments go by
+    /// their control points: its own is kept in `points` (also if it is kept whole), and the
+    /// strand's tail (its points past the last segment's first) in `extra` once a packed
+    /// segment reaches it.
+    fn settle_spline(
+        &mut self,
+        i: usize,
+        c: GeneralizedCylinder,
+        first: usize,
+        controls: &[DVec3],
+        tail: &mut Option<u32>,
+    ) {
+        let (j, k) = (i - first, controls.len() - 3);
+        self.points.push(controls[j]);
         if self.records[i].flags & Packed::WHOLE != 0 {
             self.records[i].radii = self.whole.len() as u32;
             self.whole.push(c);
             return;
         }
-        // Joined to the record before when that is packed, its end is the last one kept
-        // aside, and `c`'s origin serves as its `p3` (rebuilds its local point: the end kept
-        // is `o + l`, which may differ from the strand's joint in the last bit).
+        let avail = (k - j).min(4);
+        let extra = &mut self.extra;
+        let record = &mut self.records[i];
+        record.flags |= Packed::SPLINE | (avail as u32) << Packed::AVAIL_SHIFT;
+        if avail < 4 {
+            record.extra = *tail.get_or_insert_with(|| {
+                extra.extend_from_slice(&controls[k..]);
+                (extra.len() - 3) as u32
+            });
+        }
+        // Its axis was checked against its control points before (`gives_back`); the rest of
+        // its points are the next records' and not yet kept.
+        self.share_radii(i, &c);
+    }
+
+    /// Completes record `i` (made by [`Self::pack`], all before it settled), not a strand's
+    /// segment: a cylinder that did not pack is kept whole; a packed one keeps `p0` in
+    /// `points` and the rest in `extra`, and is joined to the record before where that one ends
+    /// at its start (the end it kept aside is dropped).
+    fn settle(&mut self, i: usize, c: GeneralizedCylinder) {
+        if self.records[i].flags & Packed::WHOLE != 0 {
+            self.records[i].radii = self.whole.len() as u32;
+            self.whole.push(c);
+            self.points.push(DVec3::ZERO);
+            return;
+        }
+        // Joined to the record before when that is a packed one of this kind with its end
+        // kept aside last, and `c`'s origin serves as its `p3` (rebuilds its local point: the
+        // end kept is `o + l`, which may differ from the strand's joint in the last bit).
         if let Some(last) = i.checked_sub(1).map(|j| &mut self.records[j])
-            && last.flags & (Packed::WHOLE | Packed::JOINED) == 0
-            && (last.flags >> Packed::END_SHIFT) as usize + 1 == self.ends.len()
-            && self.ends.last().is_some_and(|&end| {
-                let o = last.points[0];
+            && last.flags & (Packed::WHOLE | Packed::JOINED | Packed::SPLINE) == 0
+            && last.extra as usize + 3 == self.extra.len()
+            && self.extra.last().is_some_and(|&end| {
+                let o = self.points[i - 1];
                 bits(c.origin - o) == bits(end - o)
             })
         {
-            last.flags = (last.flags & ((1 << Packed::END_SHIFT) - 1)) | Packed::JOINED;
-            self.ends.pop();
+            last.flags |= Packed::JOINED;
+            self.extra.pop();
         }
-        let record = &mut self.records[i];
-        record.flags |= (self.ends.len() as u32) << Packed::END_SHIFT;
-        self.ends.push(c.origin + c.axis.points[3]);
+        let (o, l) = (c.origin, &c.axis.points);
+        self.records[i].extra = self.extra.len() as u32;
+        self.extra.extend([o + l[1], o + l[2], o + l[3]]);
+        self.points.push(o);
+        self.share_radii(i, &c);
+        debug_assert!(self.unpack(i) == c, "a packed cylinder rebuilds as itself");
+    }
+
+    /// Gives record `i` its radii: those at its start shared with the entry before where they
+    /// are equal, those at its end with its start.
+    fn share_radii(&mut self, i: usize, c: &GeneralizedCylinder) {
         let [start, end] = [0, 1].map(|k| Radii {
             major: c.sweep.major[k],
             minor: c.sweep.minor[k],
@@ -173,27 +334,27 @@ impl PackedCylinders {
         if self.radii.last().map(|r| r.bits()) != Some(start.bits()) {
             self.radii.push(start);
         }
+        let record = &mut self.records[i];
         record.radii = self.radii.len() as u32 - 1;
         if end.bits() != start.bits() {
             self.radii.push(end);
             record.radii |= Packed::TAPERED;
         }
-        debug_assert!(self.unpack(i) == c, "a packed cylinder rebuilds as itself");
     }
 
-    /// The record of `c` (without `radii` and the end's place) if it packs (module docs), else
-    /// a placeholder marked [`Packed::WHOLE`].
+    /// The record of `c` (without its radii and points) if it packs (module docs), else a
+    /// placeholder marked [`Packed::WHOLE`].
     fn pack(c: &GeneralizedCylinder) -> Packed {
         Self::packed(c).unwrap_or(Packed {
-            points: [DVec3::ZERO; 3],
             reference: DVec3::ZERO,
             rotation: [0.0; 2],
             radii: 0,
             flags: Packed::WHOLE,
+            extra: 0,
         })
     }
 
-    /// The record of `c` (without `radii` and the end's place), if it packs.
+    /// The record of `c` (without its radii and points), if it packs.
     fn packed(c: &GeneralizedCylinder) -> Option<Packed> {
         if !matches!(c.section, Section::Circle(_)) || c.has_switches() {
             return None;
@@ -213,13 +374,12 @@ impl PackedCylinders {
         }
         let caps =
             u32::from(c.caps[0]) * Packed::CAP_START + u32::from(c.caps[1]) * Packed::CAP_END;
-        let l = &c.axis.points;
         Some(Packed {
-            points: [o, o + l[1], o + l[2]],
             reference,
             rotation: c.sweep.rotation,
             radii: 0,
             flags: flag | caps | (u32::from(c.may_fold()) * Packed::MAY_FOLD),
+            extra: 0,
         })
     }
 
@@ -227,12 +387,31 @@ impl PackedCylinders {
     #[inline]
     fn world_points(&self, i: usize) -> [DVec3; 4] {
         let r = &self.records[i];
+        let e = r.extra as usize;
+        if r.flags & Packed::SPLINE != 0 {
+            // E_{j+m}: in `points` while the strand lasts (nearly always all four), then in its
+            // tail.
+            let avail = (r.flags >> Packed::AVAIL_SHIFT) as usize;
+            let w = if avail == 4 {
+                let w = &self.points[i..i + 4];
+                [w[0], w[1], w[2], w[3]]
+            } else {
+                std::array::from_fn(|m| {
+                    if m < avail {
+                        self.points[i + m]
+                    } else {
+                        self.extra[e + m - avail]
+                    }
+                })
+            };
+            return spline_segment(w).points;
+        }
         let p3 = if r.flags & Packed::JOINED != 0 {
-            self.records[i + 1].points[0]
+            self.points[i + 1]
         } else {
-            self.ends[(r.flags >> Packed::END_SHIFT) as usize]
+            self.extra[e + 2]
         };
-        [r.points[0], r.points[1], r.points[2], p3]
+        [self.points[i], self.extra[e], self.extra[e + 1], p3]
     }
 
     /// The sweep of packed record `r`: its radii and rotation.
@@ -327,21 +506,27 @@ impl PackedCylinders {
         (0..self.len()).map(|i| self.get(i))
     }
 
-    /// Where cylinder `i`'s packed data lies, as (address, bytes), found without reading the
-    /// store: its record and the next record's first point (its fourth control point when
-    /// joined), for a caller that wants to start loading them early (a cache hint; past the
-    /// end, the address lies outside the store and must not be read).
+    /// Where cylinder `i`'s packed data lies, as (address, bytes) twice, found without reading
+    /// the store: its record, and its run of four points (a strand's segment's control
+    /// points; another's `p0` and the next one's, its `p3` when joined), for a caller that
+    /// wants to start loading them early (a cache hint; past the end, the addresses lie
+    /// outside the store and must not be read). Points kept aside (`p1, p2`, a strand's tail)
+    /// are not included.
     #[inline]
-    pub fn storage(&self, i: usize) -> (*const u8, usize) {
+    pub fn storage(&self, i: usize) -> [(*const u8, usize); 2] {
         let r = self.records.as_ptr().wrapping_add(i);
-        (r.cast::<u8>(), size_of::<Packed>() + size_of::<DVec3>())
+        let p = self.points.as_ptr().wrapping_add(i);
+        [
+            (r.cast::<u8>(), size_of::<Packed>()),
+            (p.cast::<u8>(), 4 * size_of::<DVec3>()),
+        ]
     }
 
-    /// Bytes held: the records, ends and radii, and the whole cylinders with their own heap
+    /// Bytes held: the records, points and radii, and the whole cylinders with their own heap
     /// data (a section's profile not included: profiles are shared).
     pub fn memory_bytes(&self) -> usize {
         self.records.capacity() * size_of::<Packed>()
-            + self.ends.capacity() * size_of::<DVec3>()
+            + (self.points.capacity() + self.extra.capacity()) * size_of::<DVec3>()
             + self.radii.capacity() * size_of::<Radii>()
             + self.whole.capacity() * size_of::<GeneralizedCylinder>()
             + self.whole.iter().map(|c| c.heap_bytes()).sum::<usize>()
@@ -358,6 +543,13 @@ impl Radii {
     fn bits(&self) -> [u64; 2] {
         [self.major, self.minor].map(f64::to_bits)
     }
+}
+
+/// Whether the spline segment of the control points `w` is `c`'s axis to the bit: its first
+/// point `c`'s origin, and the others less it `c`'s local points.
+fn gives_back(c: &GeneralizedCylinder, w: [DVec3; 4]) -> bool {
+    let p = spline_segment(w).points;
+    bits(p[0]) == bits(c.origin) && (0..4).all(|m| bits(p[m] - p[0]) == bits(c.axis.points[m]))
 }
 
 /// The bits of a point's coordinates (equal bits: the same point, `-0` and `0` told apart).
@@ -389,6 +581,21 @@ mod tests {
         }
     }
 
+    /// A strand's first cylinder and control points, as a test holds them.
+    #[derive(Clone)]
+    struct StrandSpan {
+        first: usize,
+        controls: Vec<DVec3>,
+    }
+
+    fn controls_of(spans: &[StrandSpan]) -> StrandControls {
+        let mut out = StrandControls::default();
+        for s in spans {
+            out.push(s.first, &s.controls);
+        }
+        out
+    }
+
     fn bytes_whole(cylinders: &[GeneralizedCylinder]) -> usize {
         size_of_val(cylinders) + cylinders.iter().map(|c| c.heap_bytes()).sum::<usize>()
     }
@@ -407,7 +614,7 @@ mod tests {
             })
             .collect();
         let mut all = vec![];
-        let mut strands = 0;
+        let mut strands = vec![];
         for (k, offset) in [0.0, 1e4, 1e6, -3.3e4].into_iter().enumerate() {
             for framing in [StrandFraming::RotationMinimizing, StrandFraming::Frenet] {
                 for (radius, ell) in [
@@ -418,8 +625,11 @@ mod tests {
                     let start =
                         DVec3::splat(offset) + DVec3::new(rng.range(-1.0, 1.0), 0.0, k as f64);
                     let s = strand(&mut rng, start, 9, radius, ell);
+                    strands.push(StrandSpan {
+                        first: all.len(),
+                        controls: s.spline_controls(),
+                    });
                     all.extend(s.cylinders_with(framing).unwrap());
-                    strands += 1;
                 }
             }
             let line =
@@ -463,6 +673,77 @@ mod tests {
         all[folding].may_fold = true;
         let packed = PackedCylinders::new(all.clone());
         assert_eq!(packed.len(), all.len());
+        assert!(packed.records.iter().all(|r| r.flags & Packed::SPLINE == 0));
+        check_every_cylinder(&packed, &all);
+        // The records made in another order (as a parallel map makes them): the same store.
+        let mapped = PackedCylinders::new_mapped(
+            all.clone(),
+            &StrandControls::default(),
+            |cylinders, record| {
+                let mut records: Vec<Record> = cylinders.iter().rev().map(record).collect();
+                records.reverse();
+                records
+            },
+        );
+        assert!(mapped.records == packed.records && mapped.points == packed.points);
+        assert!(mapped.extra == packed.extra && mapped.radii == packed.radii);
+        assert!(mapped.whole == packed.whole);
+        // What packs: all strand segments but those whose points do not come back; three kinds
+        // a block stay whole.
+        let whole = packed.whole().len();
+        assert!(whole >= 12, "{whole} whole");
+        assert!(
+            whole <= 12 + strands.len() * 8 / 4,
+            "most strand segments pack: {whole} whole"
+        );
+        assert!(
+            packed.memory_bytes() * 10 < bytes_whole(&all) * 8,
+            "packed {} bytes against {}",
+            packed.memory_bytes(),
+            bytes_whole(&all)
+        );
+        // With the strands named, their packed segments go by their control points (those
+        // kept whole at a Frenet switch stay whole), and every cylinder still comes back; so
+        // it does where a span's control points lie (one moved by an ulp, one span naming
+        // cylinders that are not its segments): those go as before.
+        let mut spans = strands.clone();
+        let liar = spans.len() / 2;
+        spans[liar].controls[2].x = spans[liar].controls[2].x.next_up();
+        spans[3].first += 1;
+        spans[3].controls.pop();
+        let splined =
+            PackedCylinders::new_mapped(all.clone(), &controls_of(&spans), |cylinders, record| {
+                cylinders.iter().map(record).collect()
+            });
+        check_every_cylinder(&splined, &all);
+        let is_spline = |i: usize| splined.records[i].flags & Packed::SPLINE != 0;
+        let is_whole = |i: usize| splined.records[i].flags & Packed::WHOLE != 0;
+        let packed_segments = |s: &StrandSpan| (0..8).filter(|j| !is_whole(s.first + j)).count();
+        let segments: usize = strands.iter().map(packed_segments).sum();
+        let by_controls = (0..all.len()).filter(|&i| is_spline(i)).count();
+        assert!(
+            !(0..8).any(|j| is_spline(spans[liar].first + j)),
+            "the liar"
+        );
+        assert!(
+            !(0..8).any(|j| is_spline(strands[3].first + j)),
+            "the shifted span"
+        );
+        let lied = packed_segments(&strands[liar]) + packed_segments(&strands[3]);
+        assert_eq!(
+            by_controls,
+            segments - lied,
+            "all the packed segments of honest spans by their control points"
+        );
+        // Two points a segment fewer (48 bytes), less the tails (three points a strand).
+        let saved = packed.memory_bytes() - splined.memory_bytes();
+        assert!(saved >= by_controls * 36, "{saved} bytes saved");
+    }
+
+    /// Each cylinder of `packed` comes back equal in every field, in order, and the cull's
+    /// view of it (its reach exactly, its world points to rounding).
+    fn check_every_cylinder(packed: &PackedCylinders, all: &[GeneralizedCylinder]) {
+        assert_eq!(packed.len(), all.len());
         for (i, c) in all.iter().enumerate() {
             assert!(*packed.get(i) == *c, "cylinder {i} comes back as it was");
             // What the cull reads: the reach itself, the world points to rounding.
@@ -482,34 +763,13 @@ mod tests {
                 .map(|c| c.into_owned())
                 .eq(all.iter().cloned())
         );
-        // The records made in another order (as a parallel map makes them): the same store.
-        let mapped = PackedCylinders::new_mapped(all.clone(), |cylinders, record| {
-            let mut records: Vec<Record> = cylinders.iter().rev().map(record).collect();
-            records.reverse();
-            records
-        });
-        assert!(mapped.records == packed.records && mapped.ends == packed.ends);
-        assert!(mapped.radii == packed.radii && mapped.whole == packed.whole);
-        // What packs: all strand segments but those whose points do not come back; three kinds
-        // a block stay whole.
-        let whole = packed.whole().len();
-        assert!(whole >= 12, "{whole} whole");
-        assert!(
-            whole <= 12 + strands * 8 / 4,
-            "most strand segments pack: {whole} whole"
-        );
-        assert!(
-            packed.memory_bytes() * 10 < bytes_whole(&all) * 8,
-            "packed {} bytes against {}",
-            packed.memory_bytes(),
-            bytes_whole(&all)
-        );
     }
 
-    /// A strand's segments share their joints and radii: three points a segment and its tip, one
-    /// set of radii for a round strand of constant radius, 120 bytes of record a segment.
+    /// A strand named by its control points stores one point a segment and three at its tip;
+    /// unnamed, its segments share their joints: three points a segment and its tip. Radii:
+    /// one set for a round strand of constant radius; a tapered one's at its joints and ends.
     #[test]
-    fn a_strand_stores_three_points_a_segment() {
+    fn a_strand_stores_one_point_a_segment() {
         let mut rng = Lcg(3);
         let s = strand(
             &mut rng,
@@ -519,24 +779,50 @@ mod tests {
             1.0,
         );
         let cylinders = s.cylinders().unwrap();
-
-        let packed = PackedCylinders::new(cylinders.clone());
-        assert!(packed.whole().is_empty(), "every segment packs");
-        assert_eq!(packed.ends.len(), 1, "joints shared: one end kept aside");
-        assert_eq!(packed.radii.len(), 1, "one radius");
-        assert_eq!(size_of::<Packed>(), 120);
-        for (i, c) in cylinders.iter().enumerate() {
-            assert!(*packed.get(i) == *c, "segment {i}");
+        assert_eq!(size_of::<Packed>(), 56);
+        let span = StrandSpan {
+            first: 0,
+            controls: s.spline_controls(),
+        };
+        for spans in [vec![], vec![span.clone()]] {
+            let packed = PackedCylinders::new_mapped(
+                cylinders.clone(),
+                &controls_of(&spans),
+                |c, record| c.iter().map(record).collect(),
+            );
+            assert!(packed.whole().is_empty(), "every segment packs");
+            assert_eq!(
+                packed.points.len(),
+                16 + 1,
+                "one point a segment, and one past"
+            );
+            let aside = if spans.is_empty() { 2 * 16 + 1 } else { 3 };
+            assert_eq!(packed.extra.len(), aside, "points kept aside");
+            assert_eq!(packed.radii.len(), 1, "one radius");
+            for (i, c) in cylinders.iter().enumerate() {
+                assert!(*packed.get(i) == *c, "segment {i}");
+            }
         }
-        // Two strands one after the other share nothing across their gap.
+        // Two strands one after the other share nothing across their gap; the second, of 4
+        // segments, takes all from its tail but its first.
         let t = strand(&mut rng, DVec3::new(5.0, 0.0, 0.0), 5, [0.02, 0.01], 1.0);
         let both: Vec<_> = cylinders
             .iter()
             .cloned()
             .chain(t.cylinders().unwrap())
             .collect();
-        let packed = PackedCylinders::new(both.clone());
-        assert_eq!(packed.ends.len(), 2, "each strand's tip kept aside");
+        let spans = [
+            span,
+            StrandSpan {
+                first: 16,
+                controls: t.spline_controls(),
+            },
+        ];
+        let packed =
+            PackedCylinders::new_mapped(both.clone(), &controls_of(&spans), |c, record| {
+                c.iter().map(record).collect()
+            });
+        assert_eq!(packed.extra.len(), 6, "each strand's tail");
         assert_eq!(
             packed.radii.len(),
             1 + 5,
@@ -545,6 +831,8 @@ mod tests {
         for (i, c) in both.iter().enumerate() {
             assert!(*packed.get(i) == *c, "segment {i}");
         }
+        let avail = |i: usize| packed.records[i].flags >> Packed::AVAIL_SHIFT;
+        assert_eq!((16..20).map(avail).collect::<Vec<_>>(), [4, 3, 2, 1]);
     }
 
     /// Axes from 1e-3 to 1e5 from the origin come back equal, packed exactly when their points

@@ -328,36 +328,31 @@ impl Strand {
 
     /// The Bezier segments of the uniform cubic B-spline through the control points, with the
     /// end points reflected (`Q_{-1} = 2 Q_0 - Q_1`, likewise at the tip) so the curve starts at
-    /// the root and ends at the tip. Segment `i` over `Q_{i-1}..Q_{i+2}` has Bezier points
-    /// `(Q_{i-1} + 4 Q_i + Q_{i+1})/6`, `(2 Q_i + Q_{i+1})/3`, `(Q_i + 2 Q_{i+1})/3`,
-    /// `(Q_i + 4 Q_{i+1} + Q_{i+2})/6`: consecutive segments share position, first and second
-    /// derivatives, so the Frenet frame is continuous across joints.
+    /// the root and ends at the tip: segment `i` is [`spline_segment`] of
+    /// `Q_{i-1}, Q_i, Q_{i+1}, Q_{i+2}` (four consecutive [`Strand::spline_controls`]).
+    /// Consecutive segments share position, first and second derivatives, so the Frenet frame
+    /// is continuous across joints.
     pub fn bezier_segments(&self) -> Vec<CubicBezier> {
+        self.spline_controls()
+            .windows(4)
+            .map(|w| spline_segment([w[0], w[1], w[2], w[3]]))
+            .collect()
+    }
+
+    /// The B-spline's control points with the reflected ends, `Q_{-1}, Q_0, .., Q_{n-1}, Q_n`
+    /// (`n + 2` for `n >= 2` points, one segment for every window of four; none for fewer
+    /// than two points).
+    pub fn spline_controls(&self) -> Vec<DVec3> {
         let q = &self.points;
         let n = q.len();
         if n < 2 {
             return Vec::new();
         }
-        let at = |i: isize| -> DVec3 {
-            if i < 0 {
-                2.0 * q[0] - q[1]
-            } else if i as usize >= n {
-                2.0 * q[n - 1] - q[n - 2]
-            } else {
-                q[i as usize]
-            }
-        };
-        (0..n as isize - 1)
-            .map(|i| {
-                let (a, b, c, d) = (at(i - 1), at(i), at(i + 1), at(i + 2));
-                CubicBezier::new([
-                    (a + 4.0 * b + c) / 6.0,
-                    (2.0 * b + c) / 3.0,
-                    (b + 2.0 * c) / 3.0,
-                    (b + 4.0 * c + d) / 6.0,
-                ])
-            })
-            .collect()
+        let mut out = Vec::with_capacity(n + 2);
+        out.push(2.0 * q[0] - q[1]);
+        out.extend_from_slice(q);
+        out.push(2.0 * q[n - 1] - q[n - 2]);
+        out
     }
 
     /// The strand as cylinders, framed by [`StrandFraming::RotationMinimizing`] (see
@@ -568,6 +563,19 @@ impl Strand {
             steps *= 4;
         }
     }
+}
+
+/// The Bezier form of the uniform cubic B-spline segment over the control points
+/// `a, b, c, d`: `(a + 4 b + c) / 6`, `(2 b + c) / 3`, `(b + 2 c) / 3`, `(b + 4 c + d) / 6`
+/// (each rounded as written, so a segment can be rebuilt to the bit from its four points).
+#[inline]
+pub fn spline_segment([a, b, c, d]: [DVec3; 4]) -> CubicBezier {
+    CubicBezier::new([
+        (a + 4.0 * b + c) / 6.0,
+        (2.0 * b + c) / 3.0,
+        (b + 2.0 * c) / 3.0,
+        (b + 4.0 * c + d) / 6.0,
+    ])
 }
 
 /// The RMF's angle `psi` in a projection frame along a segment (see [`Samples::fit`]).

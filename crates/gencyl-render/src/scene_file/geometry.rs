@@ -7,8 +7,8 @@ use std::path::Path;
 
 use gencyl::section::ProfileError;
 use gencyl::{
-    BezierLoop, FiberSpec, GeneralizedCylinder, GeometryError, Section, Strand, StrandFraming,
-    Unresolved,
+    BezierLoop, FiberSpec, GeneralizedCylinder, GeometryError, Section, Strand, StrandControls,
+    StrandFraming, Unresolved,
 };
 use glam::{DQuat, DVec2, DVec3};
 use rayon::prelude::*;
@@ -445,9 +445,41 @@ pub struct StrandInput {
     pub transform: Similarity,
 }
 
+/// A strand's segments as cylinders, and the B-spline control points they are segments of.
+pub type StrandParts = (Vec<GeneralizedCylinder>, Vec<DVec3>);
+
+/// Strands' segments as cylinders, and the B-spline control points they are segments of
+/// ([`gencyl::Strand::spline_controls`]), by which a scene stores them compactly.
+#[derive(Clone, Debug, Default)]
+pub struct BuiltStrands {
+    /// The segments, strand after strand.
+    pub cylinders: Vec<GeneralizedCylinder>,
+    /// Each strand's first segment in `cylinders` and its control points.
+    pub controls: StrandControls,
+}
+
+impl BuiltStrands {
+    /// Appends a strand's segments and its control points.
+    pub fn push(&mut self, cylinders: Vec<GeneralizedCylinder>, controls: &[DVec3]) {
+        self.controls.push(self.cylinders.len(), controls);
+        self.cylinders.extend(cylinders);
+    }
+
+    /// Appends other strands (takes them, without a copy, when there are none yet).
+    pub fn append(&mut self, other: BuiltStrands) {
+        if self.cylinders.is_empty() && self.controls.is_empty() {
+            *self = other;
+            return;
+        }
+        self.controls.append(&other.controls, self.cylinders.len());
+        self.cylinders.extend(other.cylinders);
+    }
+}
+
 /// Checks a strand's values (at least 2 finite points, none repeating the one before, a
-/// positive finite radius, the shape) and builds its segments; a problem names the [`Key`].
-pub fn build_strand_from(s: StrandInput) -> Result<Vec<GeneralizedCylinder>, (Key, String)> {
+/// positive finite radius, the shape) and builds its segments, with the control points they
+/// are segments of; a problem names the [`Key`].
+pub fn build_strand_from(s: StrandInput) -> Result<StrandParts, (Key, String)> {
     let xf = s.transform;
     let mut points = Vec::with_capacity(s.points.len());
     for (i, p) in s.points.iter().enumerate() {
@@ -482,16 +514,14 @@ pub fn build_strand_from(s: StrandInput) -> Result<Vec<GeneralizedCylinder>, (Ke
         twist,
         section: s.section,
     };
-    strand
+    let cylinders = strand
         .cylinders_with(s.framing)
-        .map_err(|(seg, e)| (Key::Points, format!("segment {seg}: {e}")))
+        .map_err(|(seg, e)| (Key::Points, format!("segment {seg}: {e}")))?;
+    Ok((cylinders, strand.spline_controls()))
 }
 
 /// Checks one `[[strand]]` table and builds its segments.
-pub(super) fn build_strand(
-    s: &RawStrand,
-    table: Range<usize>,
-) -> Result<Vec<GeneralizedCylinder>, Problem> {
+pub(super) fn build_strand(s: &RawStrand, table: Range<usize>) -> Result<StrandParts, Problem> {
     let (pts, through) = match (&s.points, &s.control_points) {
         (Some(p), None) => (p, true),
         (None, Some(c)) => (c, false),
@@ -566,7 +596,7 @@ pub(super) fn build_plane(r: &RawPlane) -> Result<Plane, Problem> {
 }
 
 /// Reads one `[[hair]]` file (relative to the scene's folder) and builds its strands.
-pub(super) fn build_hair(h: &RawHair, base: &Path) -> Result<Vec<GeneralizedCylinder>, Problem> {
+pub(super) fn build_hair(h: &RawHair, base: &Path) -> Result<BuiltStrands, Problem> {
     let file = h.file.get_ref();
     let radius = match &h.radius {
         Some(r) => Some(length(r, "radius")?),
@@ -600,7 +630,7 @@ pub(super) fn hair_cylinders(
     file: &str,
     shape: StrandShape,
     xf: Similarity,
-) -> Result<Vec<GeneralizedCylinder>, String> {
+) -> Result<BuiltStrands, String> {
     let StrandShape {
         radius,
         ellipticity,
@@ -616,7 +646,7 @@ pub(super) fn hair_cylinders(
         segments.saturating_mul(crate::limits::PEAK_BYTES_PER_SEGMENT),
         &format!("{file}: its {segments} segments"),
     )?;
-    let built: Vec<_> = hair
+    let built: Vec<Result<StrandParts, String>> = hair
         .to_strands(radius)
         .into_par_iter()
         .enumerate()
@@ -628,14 +658,22 @@ pub(super) fn hair_cylinders(
             s.radius = s.radius.map(|r| r * xf.scale);
             s.ellipticity = ellipticity;
             s.twist = twist;
-            s.cylinders_with(framing)
-                .map_err(|(seg, e)| format!("{file}: strand {i}, segment {seg}: {e}"))
+            let cylinders = s
+                .cylinders_with(framing)
+                .map_err(|(seg, e)| format!("{file}: strand {i}, segment {seg}: {e}"))?;
+            Ok((cylinders, s.spline_controls()))
         })
         .collect();
     // At its full size at once: growing it would copy (and first touch) it several times.
-    let mut out = Vec::with_capacity(built.iter().map(|b| b.as_ref().map_or(0, Vec::len)).sum());
+    let size =
+        |part: fn(&StrandParts) -> usize| built.iter().map(|b| b.as_ref().map_or(0, part)).sum();
+    let mut out = BuiltStrands {
+        cylinders: Vec::with_capacity(size(|b| b.0.len())),
+        controls: StrandControls::with_capacity(built.len(), size(|b| b.1.len())),
+    };
     for b in built {
-        out.extend(b?);
+        let (cylinders, controls) = b?;
+        out.push(cylinders, &controls);
     }
     Ok(out)
 }
@@ -656,8 +694,17 @@ impl SceneDescription {
             twist: [0.0, 0.0],
             framing: StrandFraming::default(),
         };
-        let cylinders = hair_cylinders(path, &name, shape, Similarity::default())?;
-        Ok(Self::from_cylinders(cylinders))
+        let strands = hair_cylinders(path, &name, shape, Similarity::default())?;
+        Ok(Self::from_strands(strands))
+    }
+
+    /// [`Self::from_cylinders`] of strands' segments, their control points kept for compact
+    /// storage.
+    pub fn from_strands(strands: BuiltStrands) -> Self {
+        SceneDescription {
+            strands: strands.controls,
+            ..Self::from_cylinders(strands.cylinders)
+        }
     }
 
     /// A scene of these cylinders in the built-in `fiber` material, with no camera or lights

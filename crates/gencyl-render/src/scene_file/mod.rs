@@ -71,7 +71,7 @@ use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use gencyl::GeneralizedCylinder;
+use gencyl::{GeneralizedCylinder, StrandControls};
 use rayon::prelude::*;
 use serde::Deserialize;
 use toml::Spanned;
@@ -84,7 +84,10 @@ mod lights;
 mod materials;
 mod values;
 
-pub use geometry::{FiberInput, Key, Similarity, StrandInput, build_fiber, build_strand_from};
+pub use geometry::{
+    BuiltStrands, FiberInput, Key, Similarity, StrandInput, StrandParts, build_fiber,
+    build_strand_from,
+};
 pub use materials::{FIBER_MATERIAL, SURFACE_MATERIAL};
 
 use crate::accel::{Plane, Scene, Sphere};
@@ -136,6 +139,10 @@ impl SceneError {
 pub struct SceneDescription {
     /// The cylinders in order: index = `object` number.
     pub cylinders: Vec<GeneralizedCylinder>,
+    /// The strands among the cylinders, with their B-spline control points, by which a
+    /// [`Scene`] stores their segments compactly (a span that does not give back its
+    /// cylinders exactly is not used).
+    pub strands: StrandControls,
     /// Each cylinder's material, an index into `materials`.
     pub cylinder_materials: Vec<u32>,
     /// Spheres with their material index.
@@ -345,25 +352,30 @@ fn build(raw: &RawScene, base: &Path) -> Result<SceneDescription, Problem> {
         out.cylinder_materials
             .push(materials.index(&c.get_ref().material, FIBER_MATERIAL)?);
     }
-    let built: Vec<Result<Vec<GeneralizedCylinder>, Problem>> = raw
+    let built: Vec<Result<StrandParts, Problem>> = raw
         .strand
         .par_iter()
         .map(|s| build_strand(s.get_ref(), s.span()))
         .collect();
+    let mut strands = BuiltStrands {
+        cylinders: std::mem::take(&mut out.cylinders),
+        controls: StrandControls::default(),
+    };
     for (i, (b, s)) in built.into_iter().zip(&raw.strand).enumerate() {
-        let cyls = b.map_err(|(span, msg)| (span, format!("{msg} (strand {i})")))?;
+        let (cyls, controls) = b.map_err(|(span, msg)| (span, format!("{msg} (strand {i})")))?;
         let m = materials.index(&s.get_ref().material, FIBER_MATERIAL)?;
         out.cylinder_materials
             .extend(std::iter::repeat_n(m, cyls.len()));
-        out.cylinders.extend(cyls);
+        strands.push(cyls, &controls);
     }
     for h in &raw.hair {
-        let cyls = build_hair(h.get_ref(), base)?;
+        let hair = build_hair(h.get_ref(), base)?;
         let m = materials.index(&h.get_ref().material, FIBER_MATERIAL)?;
         out.cylinder_materials
-            .extend(std::iter::repeat_n(m, cyls.len()));
-        out.cylinders.extend(cyls);
+            .extend(std::iter::repeat_n(m, hair.cylinders.len()));
+        strands.append(hair);
     }
+    (out.cylinders, out.strands) = (strands.cylinders, strands.controls);
     if out.cylinders.len() > Scene::MAX_CYLINDERS {
         return Err((
             0..0,

@@ -101,7 +101,7 @@ impl World {
         World {
             far_field,
             attenuation,
-            scene: Scene::new(desc.cylinders),
+            scene: Scene::with_strands(desc.cylinders, desc.strands),
             cylinder_materials: desc.cylinder_materials,
             spheres: desc.spheres,
             planes: desc.planes,
