@@ -321,10 +321,16 @@ impl RaySpace {
     ) -> bool {
         let q = piece.sub_bezier(p.map(|x| self.project(x)));
         // Rounding of the projection is about eps |p - o| per coordinate: widen by far more.
-        let size = p
-            .iter()
-            .fold(0.0f64, |m, x| m.max((*x - self.origin).abs().max_element()));
-        let reach = piece_reach(reach_ends, piece) * (1.0 + 1e-9) + 1e-9 * size;
+        // The points themselves may be off the axis by a few units in their last place (world
+        // points of a packed cylinder): widen by 8 eps |p| for that.
+        let (size, far) = p.iter().fold((0.0f64, 0.0f64), |(m, f), x| {
+            (
+                m.max((*x - self.origin).abs().max_element()),
+                f.max(x.abs().max_element()),
+            )
+        });
+        let reach =
+            piece_reach(reach_ends, piece) * (1.0 + 1e-9) + 1e-9 * size + 8.0 * f64::EPSILON * far;
         // A hit x within R of a(u) has z(x) within R of z(a(u)), and t = z(x) / |d|.
         let (zmin, zmax) = (tmin * self.len, tmax * self.len);
         let zmin = zmin - reach - 1e-9 * zmin.abs();
@@ -625,6 +631,59 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Axis points a few units in their last place off (as a packed cylinder's world points
+    /// may be) never make the cull reject a ray that passes inside the fiber: short fibers at
+    /// 1e4 and 1e6 from the origin, radii from 1e-6 to 1e-2 of their length, rays grazing
+    /// 1e-9 of the radius deep from points on the surface.
+    #[test]
+    fn points_off_in_their_last_place_never_reject_a_hit() {
+        let mut rng = Rng::from_seed(23);
+        for i in 0..4000 {
+            let at = DVec3::splat([1e4, -1e6, 3.3e5, 1.0][i % 4]);
+            let length = 10f64.powf(rng.range(-4.0, 0.0));
+            let dir = rng.unit_vector();
+            let bend = rng.unit_vector() * 0.2 * length;
+            let axis = [0.0, 1.0, 2.0, 3.0]
+                .map(|k| at + (dir * k + bend * (k * (3.0 - k))) * length / 3.0);
+            let r = length * 10f64.powf(rng.range(-6.0, -2.0));
+            let Ok(c) = gencyl::FiberSpec::round(axis, r).build() else {
+                continue;
+            };
+            // A ray from a point of the surface, tangent to the section there, moved 1e-9 of
+            // the radius inside: it passes within the radius of the axis.
+            let u = rng.range(0.05, 0.95);
+            let p = c.surface_point(u, rng.range(0.0, std::f64::consts::TAU));
+            let centre = c.axis().point(u);
+            let out = (p - centre).normalize();
+            let along = c.frame(u).t.cross(out).normalize();
+            let ray = Ray::new(p - out * (1e-9 * r), along);
+            // Each coordinate moved by up to 3 units in its last place.
+            let off = c.axis().points.map(|q| {
+                DVec3::from_array(q.to_array().map(|x| {
+                    let mut y = x;
+                    for _ in 0..rng.range(0.0, 4.0) as usize {
+                        y = if rng.uniform() < 0.5 {
+                            y.next_up()
+                        } else {
+                            y.next_down()
+                        };
+                    }
+                    y
+                }))
+            });
+            assert!(
+                RaySpace::new(&ray).may_hit_axis_piece(
+                    &off,
+                    c.reach_ends(),
+                    Piece::WHOLE,
+                    -1.0,
+                    f64::INFINITY
+                ),
+                "rejected {ray:?} of {c:?}"
+            );
         }
     }
 }
