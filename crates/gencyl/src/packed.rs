@@ -12,13 +12,14 @@
 //!   (the last three segments of a strand take the points beyond its last from a short tail,
 //!   three points a strand). 80 bytes a segment.
 //! - **Any other cylinder that packs**: the point kept is its first control point `p0`, and
-//!   `p1, p2` are kept aside, with `p3` too unless it is the next cylinder's `p0` (a chain of
-//!   segments sharing joints). 128 bytes (152 at a chain's end).
+//!   `p1, p2` are kept by cylinder in an array over the range of such cylinders, with `p3`
+//!   aside unless it is the next cylinder's `p0` (a chain of segments sharing joints). 128
+//!   bytes (152 at a chain's end).
 //!
 //! Radii are stored at the ends of the segments, once where consecutive segments share them
 //! (a strand's joint, or every segment of a strand of one radius). A cylinder's record and its
-//! run of points lie at addresses known without reading anything, so a BVH walk can ask for
-//! them early.
+//! points (but a strand's tail and an unjoined `p3`) lie at addresses known without reading
+//! anything, so a BVH walk can ask for them early.
 //!
 //! Nothing is approximated: [`PackedCylinders::get`] rebuilds the very cylinder that was packed
 //! (equal in every bit; the local axis is recomputed as `p_i - p_0` from the world points, the
@@ -59,8 +60,8 @@ struct Packed {
     /// [`Packed::AVAIL_SHIFT`], for a strand's segment, how many of its four control points are
     /// in `points` (1 to 4).
     flags: u32,
-    /// Where the rest of the axis is in `extra`: `p1, p2` (then `p3` unless joined), or a
-    /// strand's segment's tail (the control points past its strand's last in `points`).
+    /// Where the rest of the axis is in `extra`: `p3` unless joined, or a strand's segment's
+    /// tail (the control points past its strand's last in `points`).
     extra: u32,
 }
 
@@ -156,8 +157,11 @@ pub struct PackedCylinders {
     /// `p0` (zero for a whole one), and one past the end (so that a record's run of four is
     /// always in bounds to ask for).
     points: Vec<DVec3>,
-    /// The other packed cylinders' `p1, p2` (and `p3` where not joined), and the strands'
-    /// tails.
+    /// The other packed cylinders' `p1, p2`, by cylinder from `inner_start` (over the range
+    /// that holds them all; empty when there are none).
+    inner: Vec<[DVec3; 2]>,
+    inner_start: usize,
+    /// The other packed cylinders' `p3` where not joined, and the strands' tails.
     extra: Vec<DVec3>,
     /// Radii at the segments' ends; a segment's end and the next one's start share an entry
     /// when they are equal, and so do the ends of a segment of constant radii.
@@ -234,6 +238,22 @@ impl PackedCylinders {
                 })
             })
             .collect();
+        // The range of the other packed cylinders, for their `p1, p2`.
+        let mut range: Option<(usize, usize)> = None;
+        let mut next = taken.iter().peekable();
+        for (i, r) in out.records.iter().enumerate() {
+            while next.peek().is_some_and(|(f, c)| i >= f + c.len() - 3) {
+                next.next();
+            }
+            let in_strand = next.peek().is_some_and(|&&(f, _)| i >= f);
+            if !in_strand && r.flags & Packed::WHOLE == 0 {
+                range = Some(range.map_or((i, i), |(lo, _)| (lo, i)));
+            }
+        }
+        if let Some((lo, hi)) = range {
+            out.inner_start = lo;
+            out.inner = vec![[DVec3::ZERO; 2]; hi + 1 - lo];
+        }
         let mut spans = taken.into_iter();
         let mut span = spans.next();
         // The current strand's tail in `extra`, once a segment needs it.
@@ -307,7 +327,7 @@ impl PackedCylinders {
         // end kept is `o + l`, which may differ from the strand's joint in the last bit).
         if let Some(last) = i.checked_sub(1).map(|j| &mut self.records[j])
             && last.flags & (Packed::WHOLE | Packed::JOINED | Packed::SPLINE) == 0
-            && last.extra as usize + 3 == self.extra.len()
+            && last.extra as usize + 1 == self.extra.len()
             && self.extra.last().is_some_and(|&end| {
                 let o = self.points[i - 1];
                 bits(c.origin - o) == bits(end - o)
@@ -317,8 +337,9 @@ impl PackedCylinders {
             self.extra.pop();
         }
         let (o, l) = (c.origin, &c.axis.points);
+        self.inner[i - self.inner_start] = [o + l[1], o + l[2]];
         self.records[i].extra = self.extra.len() as u32;
-        self.extra.extend([o + l[1], o + l[2], o + l[3]]);
+        self.extra.push(o + l[3]);
         self.points.push(o);
         self.share_radii(i, &c);
         debug_assert!(self.unpack(i) == c, "a packed cylinder rebuilds as itself");
@@ -416,9 +437,10 @@ impl PackedCylinders {
         let p3 = if r.flags & Packed::JOINED != 0 {
             self.points[i + 1]
         } else {
-            self.extra[e + 2]
+            self.extra[e]
         };
-        [self.points[i], self.extra[e], self.extra[e + 1], p3]
+        let [p1, p2] = self.inner[i - self.inner_start];
+        [self.points[i], p1, p2, p3]
     }
 
     /// The sweep of packed record `r`: its radii and rotation.
@@ -514,19 +536,28 @@ impl PackedCylinders {
         (0..self.len()).map(|i| self.get(i))
     }
 
-    /// Where cylinder `i`'s packed data lies, as (address, bytes) twice, found without reading
-    /// the store: its record, and its run of four points (a strand's segment's control
-    /// points; another's `p0` and the next one's, its `p3` when joined), for a caller that
-    /// wants to start loading them early (a cache hint; past the end, the addresses lie
-    /// outside the store and must not be read). Points kept aside (`p1, p2`, a strand's tail)
-    /// are not included.
+    /// Where cylinder `i`'s packed data lies, as (address, bytes), found without reading the
+    /// store: its record, its run of four points (a strand's segment's control points;
+    /// another's `p0` and the next one's, its `p3` when joined), and another's `p1, p2` (no
+    /// bytes where the store has no such cylinders), for a caller that wants to start loading
+    /// them early (a cache hint; past the end, the addresses lie outside the store and must
+    /// not be read). A strand's tail and an unjoined `p3` are not included.
     #[inline]
-    pub fn storage(&self, i: usize) -> [(*const u8, usize); 2] {
+    pub fn storage(&self, i: usize) -> [(*const u8, usize); 3] {
         let r = self.records.as_ptr().wrapping_add(i);
         let p = self.points.as_ptr().wrapping_add(i);
+        let q = self
+            .inner
+            .as_ptr()
+            .wrapping_add(i.wrapping_sub(self.inner_start));
         [
             (r.cast::<u8>(), size_of::<Packed>()),
             (p.cast::<u8>(), 4 * size_of::<DVec3>()),
+            (
+                q.cast::<u8>(),
+                size_of_val(self.inner.first().unwrap_or(&[DVec3::ZERO; 2]))
+                    * usize::from(!self.inner.is_empty()),
+            ),
         ]
     }
 
@@ -535,6 +566,7 @@ impl PackedCylinders {
     pub fn memory_bytes(&self) -> usize {
         self.records.capacity() * size_of::<Packed>()
             + (self.points.capacity() + self.extra.capacity()) * size_of::<DVec3>()
+            + self.inner.capacity() * size_of::<[DVec3; 2]>()
             + self.radii.capacity() * size_of::<Radii>()
             + self.whole.capacity() * size_of::<GeneralizedCylinder>()
             + self.whole.iter().map(|c| c.heap_bytes()).sum::<usize>()
@@ -712,6 +744,7 @@ mod tests {
         );
         assert!(mapped.records == packed.records && mapped.points == packed.points);
         assert!(mapped.extra == packed.extra && mapped.radii == packed.radii);
+        assert!(mapped.inner == packed.inner && mapped.inner_start == packed.inner_start);
         assert!(mapped.whole == packed.whole);
         // What packs: all strand segments but those whose points do not come back; three kinds
         // a block stay whole.
@@ -760,9 +793,10 @@ mod tests {
             segments - lied,
             "all the packed segments of honest spans by their control points"
         );
-        // Two points a segment fewer (48 bytes), less the tails (three points a strand).
-        let saved = packed.memory_bytes() - splined.memory_bytes();
-        assert!(saved >= by_controls * 36, "{saved} bytes saved");
+        // Less memory, though not the 36 bytes a segment of a scene of strands alone: here
+        // the other packed cylinders (whose `p1, p2` are kept by cylinder over their range)
+        // lie between the strands.
+        assert!(splined.memory_bytes() < packed.memory_bytes());
     }
 
     /// Each cylinder of `packed` comes back equal in every field, in order, and the cull's
@@ -821,8 +855,9 @@ mod tests {
                 16 + 1,
                 "one point a segment, and one past"
             );
-            let aside = if spans.is_empty() { 2 * 16 + 1 } else { 3 };
+            let (aside, inner) = if spans.is_empty() { (1, 16) } else { (3, 0) };
             assert_eq!(packed.extra.len(), aside, "points kept aside");
+            assert_eq!(packed.inner.len(), inner, "inner points by cylinder");
             assert_eq!(packed.radii.len(), 1, "one radius");
             for (i, c) in cylinders.iter().enumerate() {
                 assert!(*packed.get(i) == *c, "segment {i}");

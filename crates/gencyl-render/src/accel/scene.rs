@@ -162,7 +162,9 @@ impl Scene {
         let mut space: Option<RaySpace> = None;
         let cylinder = |key: u32| {
             for (p, len) in self.cylinders.storage((key >> PIECE_BITS) as usize) {
-                prefetch_bytes(p, len);
+                if len > 0 {
+                    prefetch_bytes(p, len);
+                }
             }
         };
         self.bvh
