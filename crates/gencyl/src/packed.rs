@@ -550,14 +550,15 @@ impl PackedCylinders {
             .inner
             .as_ptr()
             .wrapping_add(i.wrapping_sub(self.inner_start));
+        let inner = if self.inner.is_empty() {
+            0
+        } else {
+            size_of::<[DVec3; 2]>()
+        };
         [
             (r.cast::<u8>(), size_of::<Packed>()),
             (p.cast::<u8>(), 4 * size_of::<DVec3>()),
-            (
-                q.cast::<u8>(),
-                size_of_val(self.inner.first().unwrap_or(&[DVec3::ZERO; 2]))
-                    * usize::from(!self.inner.is_empty()),
-            ),
+            (q.cast::<u8>(), inner),
         ]
     }
 
