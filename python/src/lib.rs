@@ -382,7 +382,8 @@ impl PyScene {
     /// Strands through points, as `[[strand]]` tables give them: `points` a list of (K, 3)
     /// arrays (K >= 2), `radius` at root and tip (one number or a pair), `ellipticity` (minor
     /// / major, in (0, 1]), `twist` (radians at root and tip), `frame` (`"minimal"` or
-    /// `"frenet"`), `control_points` (the arrays are Bezier control points, 3 n + 1 each).
+    /// `"frenet"`), `control_points` (the arrays are the uniform cubic B-spline's control
+    /// points, as a `[[strand]]` table's `control_points`, not points the strand goes through).
     #[staticmethod]
     #[pyo3(signature = (points, radius, ellipticity = None, twist = None, frame = "minimal", control_points = false))]
     fn from_strands(
