@@ -108,6 +108,25 @@ impl StrandControls {
         }
     }
 
+    /// Strands whose control points were written in place: each strand's first cylinder and
+    /// its first point in `points`, in order (a strand's points end where the next one's
+    /// begin).
+    ///
+    /// # Panics
+    ///
+    /// If a strand's first point is before the one before it or past `points`.
+    pub fn from_parts(points: Vec<DVec3>, starts: Vec<(usize, usize)>) -> Self {
+        let mut last = 0;
+        for &(_, start) in &starts {
+            assert!(
+                start >= last && start <= points.len(),
+                "strands' points in order"
+            );
+            last = start;
+        }
+        StrandControls { points, starts }
+    }
+
     /// Adds a strand whose first segment is cylinder `first`, with its control points.
     pub fn push(&mut self, first: usize, controls: &[DVec3]) {
         self.starts.push((first, self.points.len()));

@@ -646,11 +646,34 @@ pub(super) fn hair_cylinders(
         segments.saturating_mul(crate::limits::PEAK_BYTES_PER_SEGMENT),
         &format!("{file}: its {segments} segments"),
     )?;
-    let built: Vec<Result<StrandParts, String>> = hair
-        .to_strands(radius)
+    // The cylinders and control points are written in place, each strand's share of the two
+    // arrays known from its point count (n points: n - 1 segments, n + 2 control points), so
+    // no list a strand outlives its strand and nothing is copied (a copy's freed blocks stay
+    // resident: the peak would hold the model twice).
+    let strands = hair.to_strands(radius);
+    drop(hair);
+    let mut cylinders: Vec<Option<GeneralizedCylinder>> =
+        (0..strands.iter().map(|s| s.points.len() - 1).sum())
+            .map(|_| None)
+            .collect();
+    let mut points = vec![DVec3::ZERO; strands.iter().map(|s| s.points.len() + 2).sum()];
+    let mut starts = Vec::with_capacity(strands.len());
+    let mut jobs = Vec::with_capacity(strands.len());
+    let (mut cyl_rest, mut pts_rest) = (&mut cylinders[..], &mut points[..]);
+    let (mut first, mut start) = (0, 0);
+    for s in strands {
+        let n = s.points.len();
+        let (cyl, c) = std::mem::take(&mut cyl_rest).split_at_mut(n - 1);
+        let (pts, p) = std::mem::take(&mut pts_rest).split_at_mut(n + 2);
+        (cyl_rest, pts_rest) = (c, p);
+        starts.push((first, start));
+        (first, start) = (first + n - 1, start + n + 2);
+        jobs.push((s, cyl, pts));
+    }
+    let built: Vec<Result<(), String>> = jobs
         .into_par_iter()
         .enumerate()
-        .map(|(i, mut s)| {
+        .map(|(i, (mut s, cyl, pts))| {
             for p in &mut s.points {
                 *p = xf.point(*p);
             }
@@ -658,24 +681,25 @@ pub(super) fn hair_cylinders(
             s.radius = s.radius.map(|r| r * xf.scale);
             s.ellipticity = ellipticity;
             s.twist = twist;
-            let cylinders = s
+            let segments = s
                 .cylinders_with(framing)
                 .map_err(|(seg, e)| format!("{file}: strand {i}, segment {seg}: {e}"))?;
-            Ok((cylinders, s.spline_controls()))
+            for (slot, c) in cyl.iter_mut().zip(segments) {
+                *slot = Some(c);
+            }
+            pts.copy_from_slice(&s.spline_controls());
+            Ok(())
         })
         .collect();
-    // At its full size at once: growing it would copy (and first touch) it several times.
-    let size =
-        |part: fn(&StrandParts) -> usize| built.iter().map(|b| b.as_ref().map_or(0, part)).sum();
-    let mut out = BuiltStrands {
-        cylinders: Vec::with_capacity(size(|b| b.0.len())),
-        controls: StrandControls::with_capacity(built.len(), size(|b| b.1.len())),
-    };
-    for b in built {
-        let (cylinders, controls) = b?;
-        out.push(cylinders, &controls);
-    }
-    Ok(out)
+    // The first problem in file order.
+    built.into_iter().collect::<Result<(), String>>()?;
+    Ok(BuiltStrands {
+        cylinders: cylinders
+            .into_iter()
+            .map(|c| c.expect("every strand fills its segments"))
+            .collect(),
+        controls: StrandControls::from_parts(points, starts),
+    })
 }
 
 impl SceneDescription {
