@@ -648,7 +648,7 @@ pub(super) fn hair_cylinders(
     )?;
     // The cylinders and control points are written in place, each strand's share of the two
     // arrays known from its point count (n points: n - 1 segments, n + 2 control points), so
-    // no list a strand outlives its strand and nothing is copied (a copy's freed blocks stay
+    // no per-strand list outlives its strand and nothing is copied (a copy's freed blocks stay
     // resident: the peak would hold the model twice).
     let strands = hair.to_strands(radius);
     drop(hair);
