@@ -484,11 +484,8 @@ mod tests {
     /// segments) it is within a few percent of it, so it decides the cusp test there.
     #[test]
     fn speed_floor_bounds_the_least_speed_from_below() {
-        let mut x = 0.7f64;
-        let mut next = || {
-            x = (x * 3.7 + 0.13).fract();
-            x * 2.0 - 1.0
-        };
+        let mut rng = crate::test_rng::Lcg(7);
+        let mut next = || rng.range(-1.0, 1.0);
         let mut tight = 0;
         for i in 0..400 {
             // From straight to strongly bent, at scales 1e-6 to 1e4.

@@ -388,9 +388,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         // where it does not.
         let floor = (unit.speed_floor() * (1.0 - 1e-12)).max(0.0);
         let mut least = None;
-        let mut min_speed = || *least.get_or_insert_with(|| unit.min_speed());
+        let mut exact_least = || *least.get_or_insert_with(|| unit.min_speed());
         if floor <= 2.0 * CUSP_TOLERANCE * max_speed {
-            let min_speed = min_speed();
+            let min_speed = exact_least();
             if min_speed <= CUSP_TOLERANCE * max_speed {
                 let at = (0..=1000)
                     .map(|i| i as f64 / 1000.0)
@@ -415,7 +415,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         .map(Box::new);
         // On the axis scaled to unit extent (r kappa does not change), so no square overflows.
         let may_fold = Self::fold_possible(&unit, r / extent, floor)
-            && Self::fold_possible(&unit, r / extent, min_speed());
+            && Self::fold_possible(&unit, r / extent, exact_least());
         Ok(GeneralizedCylinder {
             axis: local,
             origin,
@@ -1428,11 +1428,8 @@ mod tests {
     /// them never changes a decision.
     #[test]
     fn the_speed_floor_never_changes_the_cusp_or_fold_decision() {
-        let mut x = 0.37f64;
-        let mut next = || {
-            x = (x * 3.7 + 0.19).fract();
-            x * 2.0 - 1.0
-        };
+        let mut rng = crate::test_rng::Lcg(37);
+        let mut next = || rng.range(-1.0, 1.0);
         let (mut folds, mut cusps, mut kept) = (0, 0, 0);
         for i in 0..3000 {
             let bend = [0.0, 0.01, 0.3, 1.0, 3.0][i % 5];

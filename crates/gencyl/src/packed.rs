@@ -257,19 +257,19 @@ impl PackedCylinders {
                 })
             })
             .collect();
-        // The range of the other packed cylinders, for their `p1, p2`.
-        let mut range: Option<(usize, usize)> = None;
-        let mut next = taken.iter().peekable();
-        for (i, r) in out.records.iter().enumerate() {
-            while next.peek().is_some_and(|(f, c)| i >= f + c.len() - 3) {
-                next.next();
-            }
-            let in_strand = next.peek().is_some_and(|&&(f, _)| i >= f);
-            if !in_strand && r.flags & Packed::WHOLE == 0 {
-                range = Some(range.map_or((i, i), |(lo, _)| (lo, i)));
+        for &(first, controls) in &taken {
+            for r in &mut out.records[first..first + controls.len() - 3] {
+                if r.flags & Packed::WHOLE == 0 {
+                    r.flags |= Packed::SPLINE;
+                }
             }
         }
-        if let Some((lo, hi)) = range {
+        // The range of the other packed cylinders, for their `p1, p2`.
+        let other = |r: &Packed| r.flags & (Packed::WHOLE | Packed::SPLINE) == 0;
+        if let (Some(lo), Some(hi)) = (
+            out.records.iter().position(other),
+            out.records.iter().rposition(other),
+        ) {
             out.inner_start = lo;
             out.inner = vec![[DVec3::ZERO; 2]; hi + 1 - lo];
         }
@@ -318,7 +318,7 @@ impl PackedCylinders {
         let avail = (k - j).min(4);
         let extra = &mut self.extra;
         let record = &mut self.records[i];
-        record.flags |= Packed::SPLINE | (avail as u32) << Packed::AVAIL_SHIFT;
+        record.flags |= (avail as u32) << Packed::AVAIL_SHIFT;
         if avail < 4 {
             record.extra = *tail.get_or_insert_with(|| {
                 extra.extend_from_slice(&controls[k..]);
