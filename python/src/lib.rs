@@ -429,10 +429,10 @@ impl PyScene {
             py.detach(|| inputs.into_par_iter().map(build_strand_from).collect());
         let mut strands = BuiltStrands::default();
         for (i, b) in built.into_iter().enumerate() {
-            let (cylinders, controls) = b.map_err(|(key, m)| {
+            let (cylinders, controls, taper) = b.map_err(|(key, m)| {
                 PyValueError::new_err(format!("strand {i}: {m} ({})", argument(key)))
             })?;
-            strands.push(cylinders, &controls);
+            strands.push(cylinders, &controls, taper);
         }
         let desc = SceneDescription::from_strands(strands);
         py.detach(|| PyScene::from_description(desc, "the strands".into()))

@@ -45,5 +45,5 @@ pub use frame::{Frame, FrameAt, Framing};
 pub use intersect::Method;
 pub use packed::{PackedCylinders, Record, StrandControls};
 pub use section::{BezierLoop, CrossSection, Section, UnitCircle};
-pub use strand::{Strand, StrandFraming, StrandSegment, spline_segment};
+pub use strand::{Strand, StrandFraming, StrandSegment, Taper, along_strand, spline_segment};
 pub use sweep::{HairSweep, SweepRule};

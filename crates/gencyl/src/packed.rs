@@ -17,7 +17,9 @@
 //!   bytes (152 at a chain's end).
 //!
 //! Radii are stored at the ends of the segments, once where consecutive segments share them
-//! (a strand's joint, or every segment of a strand of one radius). A cylinder's record and its
+//! (a strand's joint, or every segment of a strand of one radius); a tapered strand's segments
+//! named with their strand's [`Taper`] take theirs from it (32 bytes a strand) where it gives
+//! them back to the bit. A cylinder's record and its
 //! points (but a strand's tail and an unjoined `p3`) lie at addresses known without reading
 //! anything, so a BVH walk can ask for them early.
 //!
@@ -40,7 +42,7 @@ use crate::curve::CubicBezier;
 use crate::cylinder::GeneralizedCylinder;
 use crate::frame::Framing;
 use crate::section::{CrossSection, Section, UnitCircle};
-use crate::strand::spline_segment;
+use crate::strand::{Taper, spline_segment};
 use crate::sweep::{HairSweep, SweepRule};
 
 /// A packed cylinder's record (module docs), or a whole one's place in `whole`.
@@ -52,13 +54,13 @@ struct Packed {
     /// The sweep's rotation at `u = 0` and `u = 1`.
     rotation: [f64; 2],
     /// Index of its radii at `u = 0` in `radii`, with [`Packed::TAPERED`] set when those at
-    /// `u = 1` are the next entry (else they are the same); for a whole cylinder, its index in
-    /// `whole`.
+    /// `u = 1` are the next entry (else they are the same); with [`Packed::STRAND_TAPER`], its
+    /// strand's index in `tapers`; for a whole cylinder, its index in `whole`.
     radii: u32,
     /// The low bits: [`Packed::CAP_START`], [`Packed::CAP_END`], [`Packed::MAY_FOLD`],
-    /// [`Packed::PROJECTED`], [`Packed::WHOLE`], [`Packed::JOINED`], [`Packed::SPLINE`]; above
-    /// [`Packed::AVAIL_SHIFT`], for a strand's segment, how many of its four control points are
-    /// in `points` (1 to 4).
+    /// [`Packed::PROJECTED`], [`Packed::WHOLE`], [`Packed::JOINED`], [`Packed::SPLINE`],
+    /// [`Packed::STRAND_TAPER`]; the three from [`Packed::AVAIL_SHIFT`], for a strand's
+    /// segment, how many of its four control points are in `points` (1 to 4).
     flags: u32,
     /// Where the rest of the axis is in `extra`: `p3` unless joined, or a strand's segment's
     /// tail (the control points past its strand's last in `points`).
@@ -77,6 +79,11 @@ impl Packed {
     /// A strand's segment: its axis is the spline segment of its four control points.
     const SPLINE: u32 = 64;
     const AVAIL_SHIFT: u32 = 7;
+    /// Their mask, shifted down.
+    const AVAIL_MASK: u32 = 7;
+    /// Its radii are its strand's [`Taper`]'s, at its place in the strand (`radii` names the
+    /// strand in `tapers`).
+    const STRAND_TAPER: u32 = 1 << 10;
     /// In `radii`: the radii at `u = 1` are the entry after those at `u = 0`.
     const TAPERED: u32 = 1 << 31;
 }
@@ -89,14 +96,17 @@ pub struct Record(Packed);
 /// Strands among a list of cylinders, named by their B-spline control points with the
 /// reflected ends (as [`crate::Strand::spline_controls`] makes them): a strand whose first
 /// segment is cylinder `first` has its segment `j` at cylinder `first + j`, the spline segment
-/// ([`spline_segment`]) of its control points `j .. j + 4`. All the strands' points are kept
-/// in one array (a list of many small ones would pin the memory freed around them).
+/// ([`spline_segment`]) of its control points `j .. j + 4`, with the radii its [`Taper`] (as
+/// [`crate::Strand::taper`] gives it) has there. All the strands' points are kept in one array
+/// (a list of many small ones would pin the memory freed around them).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct StrandControls {
     points: Vec<DVec3>,
     /// Each strand's first cylinder and its first point in `points` (it ends where the next
     /// strand's begin).
     starts: Vec<(usize, usize)>,
+    /// Each strand's radii.
+    tapers: Vec<Taper>,
 }
 
 impl StrandControls {
@@ -105,17 +115,20 @@ impl StrandControls {
         StrandControls {
             points: Vec::with_capacity(points),
             starts: Vec::with_capacity(strands),
+            tapers: Vec::with_capacity(strands),
         }
     }
 
     /// Strands whose control points were written in place: each strand's first cylinder and
     /// its first point in `points`, in order (a strand's points end where the next one's
-    /// begin).
+    /// begin), and each one's radii.
     ///
     /// # Panics
     ///
-    /// If a strand's first point is before the one before it or past `points`.
-    pub fn from_parts(points: Vec<DVec3>, starts: Vec<(usize, usize)>) -> Self {
+    /// If a strand's first point is before the one before it or past `points`, or `tapers`
+    /// and `starts` differ in length.
+    pub fn from_parts(points: Vec<DVec3>, starts: Vec<(usize, usize)>, tapers: Vec<Taper>) -> Self {
+        assert_eq!(starts.len(), tapers.len(), "one taper a strand");
         let mut last = 0;
         for &(_, start) in &starts {
             assert!(
@@ -124,19 +137,25 @@ impl StrandControls {
             );
             last = start;
         }
-        StrandControls { points, starts }
+        StrandControls {
+            points,
+            starts,
+            tapers,
+        }
     }
 
-    /// Adds a strand whose first segment is cylinder `first`, with its control points.
-    pub fn push(&mut self, first: usize, controls: &[DVec3]) {
+    /// Adds a strand whose first segment is cylinder `first`, with its control points and
+    /// radii.
+    pub fn push(&mut self, first: usize, controls: &[DVec3], taper: Taper) {
         self.starts.push((first, self.points.len()));
         self.points.extend_from_slice(controls);
+        self.tapers.push(taper);
     }
 
     /// Adds `other`'s strands, their cylinders numbered from `offset`.
     pub fn append(&mut self, other: &StrandControls, offset: usize) {
-        for (first, controls) in other.iter() {
-            self.push(first + offset, controls);
+        for (first, controls, taper) in other.iter() {
+            self.push(first + offset, controls, taper);
         }
     }
 
@@ -150,14 +169,23 @@ impl StrandControls {
         self.starts.is_empty()
     }
 
-    /// Each strand's first cylinder and control points, in the order added.
-    pub fn iter(&self) -> impl ExactSizeIterator<Item = (usize, &[DVec3])> + '_ {
+    /// Each strand's first cylinder, control points and radii, in the order added.
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = (usize, &[DVec3], Taper)> + '_ {
         (0..self.starts.len()).map(|s| {
             let (first, start) = self.starts[s];
             let end = self.starts.get(s + 1).map_or(self.points.len(), |n| n.1);
-            (first, &self.points[start..end])
+            (first, &self.points[start..end], self.tapers[s])
         })
     }
+}
+
+/// A tapered strand's radii ([`Taper`]) and where its segments are: `segments` records from
+/// `first`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct StrandTaper {
+    taper: Taper,
+    first: u32,
+    segments: u32,
 }
 
 /// The sweep's radii at one end of a segment, `A` and `B` (see [`HairSweep`]).
@@ -185,6 +213,8 @@ pub struct PackedCylinders {
     /// Radii at the segments' ends; a segment's end and the next one's start share an entry
     /// when they are equal, and so do the ends of a segment of constant radii.
     radii: Vec<Radii>,
+    /// The radii of tapered strands whose segments take theirs from them.
+    tapers: Vec<StrandTaper>,
     /// The cylinders that did not pack.
     whole: Vec<GeneralizedCylinder>,
 }
@@ -240,27 +270,51 @@ impl PackedCylinders {
         // A strand's segments go by their control points where every one of them that packs
         // gives back its axis exactly as its spline segment (a segment's points are the next
         // ones' too, so all or none; one kept whole keeps its point in `points` all the same).
-        // A strand out of order or past the cylinders is not taken.
+        // A strand out of order or past the cylinders is not taken. A tapered one's take their
+        // radii from its taper where every packed one's are the taper's to the bit.
         let mut last_end = 0;
-        let taken: Vec<(usize, &[DVec3])> = strands
+        let taken: Vec<(usize, &[DVec3], Option<Taper>)> = strands
             .iter()
-            .filter(|&(first, controls)| {
+            .filter_map(|(first, controls, taper)| {
                 let k = controls.len().saturating_sub(3);
                 if !(k > 0 && first >= last_end && first + k <= cylinders.len()) {
-                    return false;
+                    return None;
                 }
                 last_end = first + k;
-                (0..k).all(|j| {
+                let packed = |j: usize| out.records[first + j].flags & Packed::WHOLE == 0;
+                let splines = (0..k).all(|j| {
                     let w = &controls[j..j + 4];
-                    out.records[first + j].flags & Packed::WHOLE != 0
-                        || gives_back(&cylinders[first + j], [w[0], w[1], w[2], w[3]])
-                })
+                    !packed(j) || gives_back(&cylinders[first + j], [w[0], w[1], w[2], w[3]])
+                });
+                let tapered = bits_of(&taper.radius) != bits_of(&[taper.radius[0]; 2])
+                    && (0..k).any(packed)
+                    && (0..k).all(|j| {
+                        let (major, minor) = taper.radii(j, k);
+                        let sweep = &cylinders[first + j].sweep;
+                        !packed(j)
+                            || bits_of(&major) == bits_of(&sweep.major)
+                                && bits_of(&minor) == bits_of(&sweep.minor)
+                    });
+                splines.then_some((first, controls, tapered.then_some(taper)))
             })
             .collect();
-        for &(first, controls) in &taken {
-            for r in &mut out.records[first..first + controls.len() - 3] {
+        for &(first, controls, taper) in &taken {
+            let k = controls.len() - 3;
+            let index = taper.map(|taper| {
+                out.tapers.push(StrandTaper {
+                    taper,
+                    first: first as u32,
+                    segments: k as u32,
+                });
+                (out.tapers.len() - 1) as u32
+            });
+            for r in &mut out.records[first..first + k] {
                 if r.flags & Packed::WHOLE == 0 {
                     r.flags |= Packed::SPLINE;
+                    if let Some(index) = index {
+                        r.flags |= Packed::STRAND_TAPER;
+                        r.radii = index;
+                    }
                 }
             }
         }
@@ -278,11 +332,11 @@ impl PackedCylinders {
         // The current strand's tail in `extra`, once a segment needs it.
         let mut tail = None;
         for (i, c) in cylinders.into_iter().enumerate() {
-            while span.is_some_and(|(first, controls)| i >= first + controls.len() - 3) {
+            while span.is_some_and(|(first, controls, _)| i >= first + controls.len() - 3) {
                 (span, tail) = (spans.next(), None);
             }
             match span {
-                Some((first, controls)) if i >= first => {
+                Some((first, controls, _)) if i >= first => {
                     out.settle_spline(i, c, first, controls, &mut tail)
                 }
                 _ => out.settle(i, c),
@@ -292,6 +346,7 @@ impl PackedCylinders {
         out.points.push(DVec3::ZERO);
         out.extra.shrink_to_fit();
         out.radii.shrink_to_fit();
+        out.tapers.shrink_to_fit();
         out.whole.shrink_to_fit();
         out
     }
@@ -326,8 +381,11 @@ impl PackedCylinders {
             });
         }
         // Its axis was checked against its control points before (`gives_back`); the rest of
-        // its points are the next records' and not yet kept.
-        self.share_radii(i, &c);
+        // its points are the next records' and not yet kept; so were its radii against its
+        // strand's taper where it takes them from there.
+        if record.flags & Packed::STRAND_TAPER == 0 {
+            self.share_radii(i, &c);
+        }
     }
 
     /// Completes record `i` (made by [`Self::pack`], all before it settled), not a strand's
@@ -438,7 +496,7 @@ impl PackedCylinders {
         if r.flags & Packed::SPLINE != 0 {
             // E_{j+m}: in `points` while the strand lasts (nearly always all four), then in its
             // tail.
-            let avail = (r.flags >> Packed::AVAIL_SHIFT) as usize;
+            let avail = (r.flags >> Packed::AVAIL_SHIFT & Packed::AVAIL_MASK) as usize;
             let w = if avail == 4 {
                 let w = &self.points[i..i + 4];
                 [w[0], w[1], w[2], w[3]]
@@ -462,17 +520,23 @@ impl PackedCylinders {
         [self.points[i], p1, p2, p3]
     }
 
-    /// The sweep of packed record `r`: its radii and rotation.
+    /// The sweep of packed record `i`, `r`: its radii and rotation.
     #[inline]
-    fn sweep(&self, r: &Packed) -> HairSweep {
-        let start = (r.radii & !Packed::TAPERED) as usize;
-        let [a, b] = [
-            self.radii[start],
-            self.radii[start + usize::from(r.radii & Packed::TAPERED != 0)],
-        ];
+    fn sweep(&self, i: usize, r: &Packed) -> HairSweep {
+        let (major, minor) = if r.flags & Packed::STRAND_TAPER != 0 {
+            let t = &self.tapers[r.radii as usize];
+            t.taper.radii(i - t.first as usize, t.segments as usize)
+        } else {
+            let start = (r.radii & !Packed::TAPERED) as usize;
+            let [a, b] = [
+                self.radii[start],
+                self.radii[start + usize::from(r.radii & Packed::TAPERED != 0)],
+            ];
+            ([a.major, b.major], [a.minor, b.minor])
+        };
         HairSweep {
-            major: [a.major, b.major],
-            minor: [a.minor, b.minor],
+            major,
+            minor,
             rotation: r.rotation,
         }
     }
@@ -492,7 +556,7 @@ impl PackedCylinders {
                 Framing::Frenet
             },
             Section::Circle(UnitCircle),
-            self.sweep(r),
+            self.sweep(i, r),
             [
                 r.flags & Packed::CAP_START != 0,
                 r.flags & Packed::CAP_END != 0,
@@ -520,7 +584,7 @@ impl PackedCylinders {
         }
         // `reach_ends` of the rebuilt cylinder.
         let bound = UnitCircle.bounding_radius();
-        let reach = self.sweep(r).scale_bound().map(|l| l * bound);
+        let reach = self.sweep(i, r).scale_bound().map(|l| l * bound);
         (self.points_of(i, spline_points_near), reach)
     }
 
@@ -588,6 +652,7 @@ impl PackedCylinders {
             + (self.points.capacity() + self.extra.capacity()) * size_of::<DVec3>()
             + self.inner.capacity() * size_of::<[DVec3; 2]>()
             + self.radii.capacity() * size_of::<Radii>()
+            + self.tapers.capacity() * size_of::<StrandTaper>()
             + self.whole.capacity() * size_of::<GeneralizedCylinder>()
             + self.whole.iter().map(|c| c.heap_bytes()).sum::<usize>()
     }
@@ -601,7 +666,7 @@ impl PackedCylinders {
 impl Radii {
     /// The radii's bits.
     fn bits(&self) -> [u64; 2] {
-        [self.major, self.minor].map(f64::to_bits)
+        bits_of(&[self.major, self.minor])
     }
 }
 
@@ -634,6 +699,11 @@ fn bits(p: DVec3) -> [u64; 3] {
     p.to_array().map(f64::to_bits)
 }
 
+/// The bits of two numbers (`-0.0` and `0.0` differ, as do NaNs).
+fn bits_of(x: &[f64; 2]) -> [u64; 2] {
+    x.map(f64::to_bits)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -663,12 +733,23 @@ mod tests {
     struct StrandSpan {
         first: usize,
         controls: Vec<DVec3>,
+        taper: Taper,
+    }
+
+    impl StrandSpan {
+        fn of(first: usize, s: &Strand) -> Self {
+            StrandSpan {
+                first,
+                controls: s.spline_controls(),
+                taper: s.taper(),
+            }
+        }
     }
 
     fn controls_of(spans: &[StrandSpan]) -> StrandControls {
         let mut out = StrandControls::default();
         for s in spans {
-            out.push(s.first, &s.controls);
+            out.push(s.first, &s.controls, s.taper);
         }
         out
     }
@@ -702,10 +783,7 @@ mod tests {
                     let start =
                         DVec3::splat(offset) + DVec3::new(rng.range(-1.0, 1.0), 0.0, k as f64);
                     let s = strand(&mut rng, start, 9, radius, ell);
-                    strands.push(StrandSpan {
-                        first: all.len(),
-                        controls: s.spline_controls(),
-                    });
+                    strands.push(StrandSpan::of(all.len(), &s));
                     all.extend(s.cylinders_with(framing).unwrap());
                 }
             }
@@ -846,7 +924,8 @@ mod tests {
 
     /// A strand named by its control points stores one point a segment and three at its tip;
     /// unnamed, its segments share their joints: three points a segment and its tip. Radii:
-    /// one set for a round strand of constant radius; a tapered one's at its joints and ends.
+    /// one set for a round strand of constant radius; a tapered one's at its joints and ends,
+    /// or its taper alone where it is named.
     #[test]
     fn a_strand_stores_one_point_a_segment() {
         let mut rng = Lcg(3);
@@ -859,10 +938,7 @@ mod tests {
         );
         let cylinders = s.cylinders().unwrap();
         assert_eq!(size_of::<Packed>(), 56);
-        let span = StrandSpan {
-            first: 0,
-            controls: s.spline_controls(),
-        };
+        let span = StrandSpan::of(0, &s);
         for spans in [vec![], vec![span.clone()]] {
             let packed = PackedCylinders::new_mapped(
                 cylinders.clone(),
@@ -891,28 +967,103 @@ mod tests {
             .cloned()
             .chain(t.cylinders().unwrap())
             .collect();
-        let spans = [
-            span,
-            StrandSpan {
-                first: 16,
-                controls: t.spline_controls(),
-            },
-        ];
+        let spans = [span, StrandSpan::of(16, &t)];
+        let unnamed = PackedCylinders::new(both.clone());
+        assert_eq!(
+            unnamed.radii.len(),
+            1 + 5,
+            "a tapered strand of 4 segments: radii at its 3 joints and 2 ends"
+        );
+        assert!(unnamed.tapers.is_empty());
         let packed =
             PackedCylinders::new_mapped(both.clone(), &controls_of(&spans), |c, record| {
                 c.iter().map(record).collect()
             });
         assert_eq!(packed.extra.len(), 6, "each strand's tail");
-        assert_eq!(
-            packed.radii.len(),
-            1 + 5,
-            "a tapered strand of 4 segments: radii at its 3 joints and 2 ends"
-        );
+        assert_eq!(packed.radii.len(), 1, "the round strand's radius");
+        assert_eq!(packed.tapers.len(), 1, "the tapered strand's taper");
         for (i, c) in both.iter().enumerate() {
             assert!(*packed.get(i) == *c, "segment {i}");
         }
-        let avail = |i: usize| packed.records[i].flags >> Packed::AVAIL_SHIFT;
+        let avail = |i: usize| packed.records[i].flags >> Packed::AVAIL_SHIFT & Packed::AVAIL_MASK;
         assert_eq!((16..20).map(avail).collect::<Vec<_>>(), [4, 3, 2, 1]);
+    }
+
+    /// A tapered strand named with its taper takes its radii from it and comes back to the
+    /// bit: radii 1e-6 to 1e-1 of a segment's length, ellipticities 0.2 to 1, 1 to 300
+    /// segments, near the origin and at 1e4. A taper that lies (its root radius an ulp off, its
+    /// ellipticity a thousandth), or a strand one of whose segments was given other radii,
+    /// keeps its radii at its joints instead, and comes back all the same.
+    #[test]
+    fn tapered_strands_take_their_radii_from_their_taper() {
+        let mut rng = Lcg(23);
+        let (mut all, mut spans) = (vec![], vec![]);
+        // Records expected to go by their taper, and such strands.
+        let (mut by_taper, mut honest) = (0, 0);
+        for case in 0..60 {
+            let n = [2, 3, 5, 17, 301][case % 5];
+            let r0 = 10f64.powf(rng.range(-6.0, -1.0));
+            let r1 = r0 * rng.range(0.05, 3.0);
+            let ell = if case % 2 == 0 {
+                1.0
+            } else {
+                rng.range(0.2, 1.0)
+            };
+            let start = DVec3::splat([0.0, 1e4, -3e3][case % 3]);
+            let s = strand(&mut rng, start, n, [r0, r1], ell);
+            let framing = if case % 4 == 3 {
+                StrandFraming::Frenet
+            } else {
+                StrandFraming::RotationMinimizing
+            };
+            let Ok(mut cylinders) = s.cylinders_with(framing) else {
+                continue;
+            };
+            let mut span = StrandSpan::of(all.len(), &s);
+            let lie = match case % 10 {
+                7 => {
+                    span.taper.radius[0] = r0.next_up();
+                    true
+                }
+                8 => {
+                    span.taper.ellipticity = ell * 0.999;
+                    true
+                }
+                9 => {
+                    let j = cylinders.len() / 2;
+                    cylinders[j].sweep.major[1] *= 1.01;
+                    true
+                }
+                _ => false,
+            };
+            let packed = PackedCylinders::new(cylinders.clone());
+            let segments = (0..cylinders.len())
+                .filter(|&i| packed.records[i].flags & Packed::WHOLE == 0)
+                .count();
+            if !lie && segments > 0 {
+                by_taper += segments;
+                honest += 1;
+            }
+            all.extend(cylinders);
+            spans.push(span);
+        }
+        let packed = PackedCylinders::new_mapped(all.clone(), &controls_of(&spans), |c, r| {
+            c.iter().map(r).collect()
+        });
+        check_every_cylinder(&packed, &all);
+        let tapered = |r: &Packed| r.flags & Packed::STRAND_TAPER != 0;
+        assert_eq!(
+            packed.records.iter().filter(|r| tapered(r)).count(),
+            by_taper
+        );
+        assert_eq!(packed.tapers.len(), honest);
+        assert!(honest >= 30, "{honest} strands by their taper");
+        // The liars' radii are at their joints (two entries for a strand of one segment).
+        assert!(
+            packed.radii.len() > 2 * (spans.len() - honest),
+            "{}",
+            packed.radii.len()
+        );
     }
 
     /// Axes from 1e-3 to 1e5 from the origin come back equal, packed exactly when their points

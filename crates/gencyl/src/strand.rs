@@ -355,6 +355,14 @@ impl Strand {
         out
     }
 
+    /// Its radii along it ([`Strand::segments`] gives its segments these).
+    pub fn taper(&self) -> Taper {
+        Taper {
+            radius: self.radius,
+            ellipticity: self.ellipticity,
+        }
+    }
+
     /// The strand as cylinders, framed by [`StrandFraming::RotationMinimizing`] (see
     /// [`Strand::segments`]).
     pub fn cylinders(&self) -> Result<Vec<GeneralizedCylinder>, (usize, GeometryError)> {
@@ -384,18 +392,16 @@ impl Strand {
     ) -> Result<Vec<StrandSegment>, (usize, GeometryError)> {
         let segs = self.bezier_segments();
         let k = segs.len();
-        let lerp = |x: [f64; 2], s: f64| x[0] + (x[1] - x[0]) * s;
         let mut out: Vec<StrandSegment> = Vec::with_capacity(k);
         // The RMF's normal at the start of the next segment.
         let mut r = DVec3::ZERO;
         let mut samples = Samples::default();
         for (i, seg) in segs.iter().enumerate() {
-            let (s0, s1) = (i as f64 / k as f64, (i + 1) as f64 / k as f64);
-            let major = [lerp(self.radius, s0), lerp(self.radius, s1)];
+            let (major, minor) = self.taper().radii(i, k);
             let sweep = HairSweep {
                 major,
-                minor: major.map(|r| r * self.ellipticity),
-                rotation: [lerp(self.twist, s0), lerp(self.twist, s1)],
+                minor,
+                rotation: [i, i + 1].map(|j| along_strand(self.twist, j, k)),
             };
             let (start, end) = (i == 0, i + 1 == k);
             let segment = match framing {
@@ -562,6 +568,33 @@ impl Strand {
             }
             steps *= 4;
         }
+    }
+}
+
+/// `x0 + (x1 - x0) s` at `s = j / k`: a strand's radius or twist where its segment `j` of `k`
+/// starts (the one formula for both, so that a store rebuilding a segment's radii from its
+/// strand's gets the bits [`Strand::segments`] made).
+#[inline]
+pub fn along_strand([x0, x1]: [f64; 2], j: usize, k: usize) -> f64 {
+    x0 + (x1 - x0) * (j as f64 / k as f64)
+}
+
+/// A strand's radii: the major one linear from root to tip ([`along_strand`]), the minor one
+/// the major times the ellipticity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Taper {
+    /// The major radius at the root and at the tip.
+    pub radius: [f64; 2],
+    /// Minor over major radius.
+    pub ellipticity: f64,
+}
+
+impl Taper {
+    /// The major and minor radii at the start and end of segment `j` of `k`.
+    #[inline]
+    pub fn radii(&self, j: usize, k: usize) -> ([f64; 2], [f64; 2]) {
+        let major = [j, j + 1].map(|j| along_strand(self.radius, j, k));
+        (major, major.map(|r| r * self.ellipticity))
     }
 }
 

@@ -316,7 +316,7 @@ mod tests {
                 section: Default::default(),
             };
             let framing = [StrandFraming::RotationMinimizing, StrandFraming::Frenet][k % 5 / 4];
-            controls.push(cylinders.len(), &strand.spline_controls());
+            controls.push(cylinders.len(), &strand.spline_controls(), strand.taper());
             cylinders.extend(strand.cylinders_with(framing).unwrap());
         }
         let plain = Scene::new(cylinders.clone());

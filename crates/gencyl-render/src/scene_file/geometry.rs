@@ -8,7 +8,7 @@ use std::path::Path;
 use gencyl::section::ProfileError;
 use gencyl::{
     BezierLoop, FiberSpec, GeneralizedCylinder, GeometryError, Section, Strand, StrandControls,
-    StrandFraming, Unresolved,
+    StrandFraming, Taper, Unresolved,
 };
 use glam::{DQuat, DVec2, DVec3};
 use rayon::prelude::*;
@@ -445,8 +445,9 @@ pub struct StrandInput {
     pub transform: Similarity,
 }
 
-/// A strand's segments as cylinders, and the B-spline control points they are segments of.
-pub type StrandParts = (Vec<GeneralizedCylinder>, Vec<DVec3>);
+/// A strand's segments as cylinders, the B-spline control points they are segments of, and
+/// its radii along it.
+pub type StrandParts = (Vec<GeneralizedCylinder>, Vec<DVec3>, Taper);
 
 /// Strands' segments as cylinders, and the B-spline control points they are segments of
 /// ([`gencyl::Strand::spline_controls`]), by which a scene stores them compactly.
@@ -454,14 +455,14 @@ pub type StrandParts = (Vec<GeneralizedCylinder>, Vec<DVec3>);
 pub struct BuiltStrands {
     /// The segments, strand after strand.
     pub cylinders: Vec<GeneralizedCylinder>,
-    /// Each strand's first segment in `cylinders` and its control points.
+    /// Each strand's first segment in `cylinders`, its control points and its radii.
     pub controls: StrandControls,
 }
 
 impl BuiltStrands {
-    /// Appends a strand's segments and its control points.
-    pub fn push(&mut self, cylinders: Vec<GeneralizedCylinder>, controls: &[DVec3]) {
-        self.controls.push(self.cylinders.len(), controls);
+    /// Appends a strand's segments, its control points and its radii.
+    pub fn push(&mut self, cylinders: Vec<GeneralizedCylinder>, controls: &[DVec3], taper: Taper) {
+        self.controls.push(self.cylinders.len(), controls, taper);
         self.cylinders.extend(cylinders);
     }
 
@@ -517,7 +518,7 @@ pub fn build_strand_from(s: StrandInput) -> Result<StrandParts, (Key, String)> {
     let cylinders = strand
         .cylinders_with(s.framing)
         .map_err(|(seg, e)| (Key::Points, format!("segment {seg}: {e}")))?;
-    Ok((cylinders, strand.spline_controls()))
+    Ok((cylinders, strand.spline_controls(), strand.taper()))
 }
 
 /// Checks one `[[strand]]` table and builds its segments.
@@ -670,7 +671,7 @@ pub(super) fn hair_cylinders(
         (first, start) = (first + n - 1, start + n + 2);
         jobs.push((s, cyl, pts));
     }
-    let built: Vec<Result<(), String>> = jobs
+    let built: Vec<Result<Taper, String>> = jobs
         .into_par_iter()
         .enumerate()
         .map(|(i, (mut s, cyl, pts))| {
@@ -688,17 +689,17 @@ pub(super) fn hair_cylinders(
                 *slot = Some(c);
             }
             pts.copy_from_slice(&s.spline_controls());
-            Ok(())
+            Ok(s.taper())
         })
         .collect();
     // The first problem in file order.
-    built.into_iter().collect::<Result<(), String>>()?;
+    let tapers = built.into_iter().collect::<Result<Vec<Taper>, String>>()?;
     Ok(BuiltStrands {
         cylinders: cylinders
             .into_iter()
             .map(|c| c.expect("every strand fills its segments"))
             .collect(),
-        controls: StrandControls::from_parts(points, starts),
+        controls: StrandControls::from_parts(points, starts, tapers),
     })
 }
 

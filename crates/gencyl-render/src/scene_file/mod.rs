@@ -362,11 +362,12 @@ fn build(raw: &RawScene, base: &Path) -> Result<SceneDescription, Problem> {
         controls: StrandControls::default(),
     };
     for (i, (b, s)) in built.into_iter().zip(&raw.strand).enumerate() {
-        let (cyls, controls) = b.map_err(|(span, msg)| (span, format!("{msg} (strand {i})")))?;
+        let (cyls, controls, taper) =
+            b.map_err(|(span, msg)| (span, format!("{msg} (strand {i})")))?;
         let m = materials.index(&s.get_ref().material, FIBER_MATERIAL)?;
         out.cylinder_materials
             .extend(std::iter::repeat_n(m, cyls.len()));
-        strands.push(cyls, &controls);
+        strands.push(cyls, &controls, taper);
     }
     for h in &raw.hair {
         let hair = build_hair(h.get_ref(), base)?;
