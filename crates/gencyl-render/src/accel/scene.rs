@@ -160,10 +160,19 @@ impl Scene {
         tested.clear();
         // Made when the first leaf is reached (most rays miss the model).
         let mut space: Option<RaySpace> = None;
-        let cylinder = |key: u32| {
-            for (p, len) in self.cylinders.storage((key >> PIECE_BITS) as usize) {
-                if len > 0 {
-                    prefetch_bytes(p, len);
+        // Every cylinder of a leaf (of several pieces, each of another cylinder, mostly).
+        let cylinder = |keys: &[u32]| {
+            let mut last = u32::MAX;
+            for &key in keys {
+                let i = key >> PIECE_BITS;
+                if i == last {
+                    continue;
+                }
+                last = i;
+                for (p, len) in self.cylinders.storage(i as usize) {
+                    if len > 0 {
+                        prefetch_bytes(p, len);
+                    }
                 }
             }
         };
