@@ -27,8 +27,9 @@ use super::{BINS, Bvh, Child, MAX_DEPTH, MAX_LEAF, Node4};
 /// (`TRAVERSAL_COST + (n_l A_l + n_r A_r) / A`), so it trades memory for rays: 0.125 made
 /// nearly every leaf one piece; at 0.75 a leaf keeps pieces (of neighbouring cylinders) whose
 /// boxes a split would hardly separate, for 9% less memory on the generated 1.6M model (273 ->
-/// 248 bytes a segment) and 0.6-0.8% more instructions a ray; at 1 it took 18% and cost the
-/// 1.6M model's rays 10-15% (README, Performance).
+/// 248 bytes a segment) and 0.5-0.8% more instructions a ray; 1 took a fifth off its memory
+/// but cost its rays 10-15% (each piece of a leaf is another cylinder's cache miss; README,
+/// Performance).
 const TRAVERSAL_COST: f64 = 0.75;
 /// Below this depth the SAH chooses splits; deeper, splits halve the primitive count, so the
 /// depth (and the traversal stack) stays bounded whatever the input.
