@@ -286,7 +286,7 @@ impl PackedCylinders {
                     let w = &controls[j..j + 4];
                     !packed(j) || gives_back(&cylinders[first + j], [w[0], w[1], w[2], w[3]])
                 });
-                let tapered = bits_of(&taper.radius) != bits_of(&[taper.radius[0]; 2])
+                let tapered = taper.radius[0].to_bits() != taper.radius[1].to_bits()
                     && (0..k).any(packed)
                     && (0..k).all(|j| {
                         let (major, minor) = taper.radii(j, k);
