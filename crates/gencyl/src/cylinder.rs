@@ -662,7 +662,19 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// [`Self::round_normal`] at `u` with the frame there, `f`, and the offset `off = r e` of
     /// the surface point from the axis given.
     pub(crate) fn round_normal_in(&self, u: f64, off: DVec3, dr: f64, f: &Frame) -> DVec3 {
-        let (d1, d2) = (self.axis.d1(u), self.axis.d2(u));
+        self.round_normal_with(self.axis.d1(u), self.axis.d2(u), off, dr, f)
+    }
+
+    /// [`Self::round_normal_in`] from `a'(u)` and `a''(u)` ([`CubicBezier::d1`],
+    /// [`CubicBezier::d2`]).
+    pub(crate) fn round_normal_with(
+        &self,
+        d1: DVec3,
+        d2: DVec3,
+        off: DVec3,
+        dr: f64,
+        f: &Frame,
+    ) -> DVec3 {
         let speed = d1.length();
         let dt = (d2 - d2.dot(f.t) * f.t) / speed;
         let orient = self.section.orientation() * self.sweep.orientation();

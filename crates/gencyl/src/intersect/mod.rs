@@ -30,7 +30,7 @@ use glam::{DVec2, DVec3};
 
 use crate::bernstein::Bernstein;
 use crate::cylinder::{GeneralizedCylinder, Hit, Part, Ray, v2};
-use crate::frame::Framing;
+use crate::frame::{Framing, frame_with};
 use crate::real::{Real, V2};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots};
 use crate::section::CrossSection;
@@ -484,10 +484,15 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         round: Option<[f64; 2]>,
     ) -> Hit {
         let u = r.u.clamp(0.0, 1.0);
-        // A round fiber's hit: the frame at `u` and the hit's offset from the axis there.
-        let frame = round.map(|_| (self.frame(r.u), o + r.w * d - self.axis.point(r.u)));
+        // A round fiber's hit: `a'` and `a''` at `u` (for the frame and the normal), the frame
+        // and the hit's offset from the axis there.
+        let frame = round.map(|_| {
+            let (d1, d2) = (self.axis.d1(r.u), self.axis.d2(r.u));
+            let f = frame_with(&self.axis, &self.framing, r.u, d1, d2);
+            (f, o + r.w * d - self.axis.point(r.u), (d1, d2))
+        });
         let v = match &frame {
-            Some((f, e)) => round::section_angle(self, r.u, *e, f),
+            Some((f, e, _)) => round::section_angle(self, r.u, *e, f),
             None => r.v,
         };
         // v in [0, 2 pi): rem_euclid of a tiny negative angle can round up to 2 pi.
@@ -498,8 +503,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         };
         let normal = match (round, frame) {
             // The offset taken into the normal plane (the root's rounding leaves a trace of `t`).
-            (Some([k0, k1]), Some((f, e))) if u == r.u => {
-                self.round_normal_in(u, e - e.dot(f.t) * f.t, k1 - k0, &f)
+            (Some([k0, k1]), Some((f, e, (d1, d2)))) if u == r.u => {
+                self.round_normal_with(d1, d2, e - e.dot(f.t) * f.t, k1 - k0, &f)
             }
             _ => self.normal(u, v),
         };
