@@ -411,17 +411,24 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
     }
     // Newton's method on `P` (rising) from the secant point of its end values.
     let mut m = if p1 > p0 { -p0 / (p1 - p0) } else { 0.5 };
+    let mut slope = f64::NAN;
     for _ in 0..4 {
         let (p, ps) = k.p.eval_with_derivative(m);
+        slope = ps;
         let next = m - p / ps;
         if !(next > 0.0 && next < 1.0) {
             break;
         }
         m = next;
     }
-    if !(k.disc.eval(m) > k.err_disc) {
+    let dm = k.disc.eval(m);
+    if !(dm > k.err_disc) {
         return None;
     }
+    // Where a straight tube's crossings lie from `m` (the ray's closest approach, `P' = |a'|^2
+    // sin^2` of the angle between them): `cos sqrt(D / P')` either side. Only a start.
+    let zs = k.z_s.eval(m);
+    let reach = zs.abs() * (dm / (slope * (slope + zs * zs))).sqrt();
     // Both branches are `-P` at the ends (`D < 0` there, and a Bernstein form's end values
     // are its end coefficients): `-p0` and `-p1`.
     let (minus_p, across) = k.parts(m);
@@ -430,12 +437,12 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
         if !(fa > 0.0 && fb < 0.0) {
             return None;
         }
-        let (s0, s1, fa, fb) = if fm < 0.0 {
-            (0.0, m, fa, fm)
+        let (s0, s1, fa, fb, start) = if fm < 0.0 {
+            (0.0, m, fa, fm, m - reach)
         } else if fm > 0.0 {
-            (m, 1.0, fm, fb)
+            (m, 1.0, fm, fb, m + reach)
         } else {
-            (0.0, 1.0, fa, fb)
+            (0.0, 1.0, fa, fb, f64::NAN)
         };
         found
             .try_push(RootCell {
@@ -445,6 +452,7 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
                 fa,
                 fb,
                 certain: true,
+                start,
             })
             .ok()?;
     }
@@ -488,6 +496,8 @@ struct RootCell {
     fa: f64,
     fb: f64,
     certain: bool,
+    /// Where Newton's method starts (NaN: the bracket's secant point; outside it, its midpoint).
+    start: f64,
 }
 
 impl RootCell {
@@ -526,6 +536,7 @@ impl RootCell {
             fa,
             fb,
             certain: certified.is_some(),
+            start: f64::NAN,
         })
     }
 
@@ -567,8 +578,12 @@ impl RootCell {
     /// zero there).
     fn polish(&self, k: &Polys) -> Option<f64> {
         let (s0, s1, sign, fa, fb) = (self.s0, self.s1, self.sign, self.fa, self.fb);
-        // Newton's method from the bracket's secant point.
-        let start = s0 + (s1 - s0) * (fa / (fa - fb));
+        // Newton's method from the cell's start, or the bracket's secant point.
+        let start = if self.start.is_nan() {
+            s0 + (s1 - s0) * (fa / (fa - fb))
+        } else {
+            self.start
+        };
         let (r, converged) =
             converged_root_from(&|s: f64| k.branch(s, sign), s0, s1, fa, fb, start)?;
         (converged && k.disc.eval(r) > k.err_disc || positive_disc(k, s0, s1)).then_some(r)
