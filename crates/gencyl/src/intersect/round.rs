@@ -482,9 +482,11 @@ fn settle_all(k: &Polys, cells: &[RootCell], out: &mut ArrayVec<(f64, f64), 16>)
 }
 
 /// A cell `[s0, s1]` where `G` has exactly one (simple) root `r` (certified by
-/// [`Product::cells`]), and the branch `H_sign` that vanishes there: `fa` at `s0` and `fb` at
-/// `s1`, of opposite signs. Where `certain`, the branch is certified and `D(r) > 0`
-/// ([`RootCell::certified_branch`]): the cell certainly holds a crossing of the side surface
+/// [`Product::cells`]), or where branch `sign` has exactly one (certified by [`tube_cells`]; the
+/// other branch's root may lie in the cell too), and the branch `H_sign` that vanishes there:
+/// `fa` at `s0` and `fb` at `s1`, of opposite signs. Where `certain`, the branch is certified
+/// and `D(r) > 0` ([`RootCell::certified_branch`], [`tube_cells`]): the cell certainly holds a
+/// crossing of the side surface
 /// (the point of the circle of radius `r(s)` in the normal plane at `s` where the ray crosses
 /// it), where the ray enters the ball about the axis point on the `-` branch and leaves it on
 /// the `+` branch.
