@@ -430,8 +430,9 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
     let zs = k.z_s.eval(m);
     let reach = zs.abs() * (dm / (slope * (slope + zs * zs))).sqrt();
     // Both branches are `-P` at the ends (`D < 0` there, and a Bernstein form's end values
-    // are its end coefficients): `-p0` and `-p1`.
-    let (minus_p, across) = k.parts(m);
+    // are its end coefficients): `-p0` and `-p1`; at `m`, `-P ± Z' sqrt(D)` ([`Polys::parts`],
+    // from the `D` and `Z'` just evaluated).
+    let (minus_p, across) = (-k.p.eval(m), zs * dm.sqrt());
     for sign in [-1.0, 1.0] {
         let (fa, fm, fb) = (-p0, minus_p + sign * across, -p1);
         if !(fa > 0.0 && fb < 0.0) {
@@ -738,8 +739,8 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         return;
     }
     let mut cells = ArrayVec::new();
-    let tube = r[0] == r[1] && !cyl.may_fold();
-    if !(tube && tube_cells(&k, &mut cells).is_some()) {
+    // (Constant radius, the tube cells' other condition, is part of `distance_convex`.)
+    if cyl.may_fold() || tube_cells(&k, &mut cells).is_none() {
         cells.clear();
         if product_cells(&k, &mut cells).is_none() {
             push_all(cyl, d, &k, (u0, u1), len, &stretch_roots(&k, 0.0, 1.0), out);
@@ -966,6 +967,15 @@ mod tests {
     use super::*;
     use crate::test_rng::Lcg;
 
+    /// The oracle of the tests below: the branch-by-branch subdivision's roots on the whole
+    /// range, ascending, a grazing root (found on both branches) kept once.
+    fn subdivision_roots(k: &Polys) -> Vec<(f64, f64)> {
+        let mut roots = stretch_roots(k, 0.0, 1.0).to_vec();
+        roots.sort_by(|a, b| a.0.total_cmp(&b.0));
+        roots.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-12);
+        roots
+    }
+
     /// Where the product method settles a range, it finds the same roots on the same branches
     /// as the branch-by-branch subdivision: curved round fibers of radii 1e-4 to 1e-1 of their
     /// length, on ranges about a point near the axis (as the prefilter gives them), hit from
@@ -1007,11 +1017,7 @@ mod tests {
                 continue;
             };
             settled += 1;
-            let slow = stretch_roots(&k, 0.0, 1.0);
-            let mut slow: Vec<_> = slow.to_vec();
-            slow.sort_by(|a, b| a.0.total_cmp(&b.0));
-            // The branch method finds a grazing root on both branches; keep one of each pair.
-            slow.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-12);
+            let slow = subdivision_roots(&k);
             assert_eq!(
                 fast.len(),
                 slow.len(),
@@ -1128,9 +1134,7 @@ mod tests {
             let mut fast = ArrayVec::new();
             settle_all(&k, &cells, &mut fast).expect("certified cells settle");
             fast.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let mut slow: Vec<_> = stretch_roots(&k, 0.0, 1.0).to_vec();
-            slow.sort_by(|a, b| a.0.total_cmp(&b.0));
-            slow.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-12);
+            let slow = subdivision_roots(&k);
             assert_eq!(
                 fast.len(),
                 slow.len(),
