@@ -846,13 +846,7 @@ mod tests {
 
     #[test]
     fn inflection_point_takes_the_limit() {
-        // Planar S curve with an inflection at u = 1/2 (a'' = 0 there by symmetry).
-        let c = CubicBezier::new([
-            DVec3::new(0.0, 0.0, 0.0),
-            DVec3::new(1.0, 1.0, 0.0),
-            DVec3::new(2.0, -1.0, 0.0),
-            DVec3::new(3.0, 0.0, 0.0),
-        ]);
+        let c = s_curve();
         let at = FrameAt::new(&c, &Framing::Frenet, 0.5).frame;
         let right = FrameAt::new(&c, &Framing::Frenet, 0.5 + 1e-4).frame;
         assert!(
@@ -1079,6 +1073,16 @@ mod tests {
 
     /// A planar S-curve bent slightly out of its plane: the Frenet frame turns by nearly half a
     /// turn within a short stretch around the near-inflection at `u = 1/2`.
+    /// A planar S curve with an exact inflection at `u = 1/2` (`a'' = 0` there by symmetry).
+    fn s_curve() -> CubicBezier {
+        CubicBezier::new([
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(2.0, -1.0, 0.0),
+            DVec3::new(3.0, 0.0, 0.0),
+        ])
+    }
+
     fn near_inflection() -> CubicBezier {
         CubicBezier::new([
             DVec3::new(0.0, 0.0, 0.0),
@@ -1093,12 +1097,7 @@ mod tests {
     /// (where the Frenet frame is taken from beside `u`), at 1e4 and at 1e-6 of the size.
     #[test]
     fn frame_from_given_derivatives_is_the_same_frame() {
-        let inflection = CubicBezier::new([
-            DVec3::new(0.0, 0.0, 0.0),
-            DVec3::new(1.0, 1.0, 0.0),
-            DVec3::new(2.0, -1.0, 0.0),
-            DVec3::new(3.0, 0.0, 0.0),
-        ]);
+        let inflection = s_curve();
         let fixed = Framing::Fixed(Box::new(Frame {
             t: DVec3::X,
             n: DVec3::Y,

@@ -413,7 +413,7 @@ impl Product {
 fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
     let d = &k.disc.0;
     let [r0, r1] = k.radius;
-    let rho = r1 - r0;
+    let (rho, r_max) = (r1 - r0, r0.abs().max(r1.abs()));
     let z_range = bounds(&k.z_s, k.err_z);
     let applies = k.slope_lo > rho * rho
         && z_range.excludes_zero()
@@ -424,7 +424,7 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
     }
     let (p0, p1) = (k.p.0[0], k.p.0[5]);
     // `D'/2 = r rho - P` at the ends (`r rho` rounded too).
-    let err_q = k.err_p + SLACK * (r0.abs().max(r1.abs()) * rho).abs();
+    let err_q = k.err_p + SLACK * (r_max * rho).abs();
     if p0 - r0 * rho > err_q || p1 - r1 * rho < -err_q {
         // `D'` keeps one sign (it falls): `D` is monotone, below its negative ends.
         return Some(());
@@ -447,7 +447,6 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
     }
     if rho != 0.0 {
         // Tapered: `D > delta^2` where `|P| < max|Z'| delta` (see above).
-        let r_max = r0.abs().max(r1.abs());
         let z_min = z_range.lo.abs().min(z_range.hi.abs());
         let z_max = z_range.lo.abs().max(z_range.hi.abs());
         let (zss_lo, zss_hi) = k.z_ss.range();
@@ -1009,6 +1008,11 @@ mod tests {
     use super::*;
     use crate::test_rng::Lcg;
 
+    /// The ray's point `z = Z ± sqrt(D)` of the root `(s, ±1)`.
+    fn ray_point(k: &Polys, (s, sign): (f64, f64)) -> f64 {
+        k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt()
+    }
+
     /// The oracle of the tests below: the branch-by-branch subdivision's roots on the whole
     /// range, ascending, a grazing root (found on both branches at one point of the ray) kept
     /// once. (An entry and an exit at nearly one `s`, as a ray nearly in the normal plane has
@@ -1016,7 +1020,7 @@ mod tests {
     fn subdivision_roots(k: &Polys) -> Vec<(f64, f64)> {
         let mut roots = stretch_roots(k, 0.0, 1.0).to_vec();
         roots.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let z = |(s, sign): (f64, f64)| k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt();
+        let z = |root| ray_point(k, root);
         let r_max = k.radius[0].abs().max(k.radius[1].abs());
         roots.dedup_by(|a, b| {
             (a.0 - b.0).abs() < 1e-12
@@ -1248,7 +1252,7 @@ mod tests {
             // The same crossing: the same branch, and the ray's point `z = Z +- sqrt(D)` within
             // the code's relative margin (a grazing crossing's `s` is ill-conditioned; its `z` is
             // not).
-            let z = |(s, sign): (f64, f64)| k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt();
+            let z = |root| ray_point(&k, root);
             for (&f, &s) in fast.iter().zip(&slow) {
                 let (zf, zs) = (z(f), z(s));
                 assert!(
