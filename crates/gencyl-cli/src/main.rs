@@ -1414,7 +1414,9 @@ fn bench_command(args: BenchArgs) -> Result<()> {
                             chunk
                                 .iter()
                                 .filter(|r| {
-                                    world.intersect(r, 0.0, f64::INFINITY, scratch).is_some()
+                                    world
+                                        .intersect(r, (0.0, f64::INFINITY), None, scratch)
+                                        .is_some()
                                 })
                                 .count()
                         })

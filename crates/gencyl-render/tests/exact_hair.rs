@@ -175,7 +175,7 @@ fn the_section_at_a_hit_is_the_solids() {
     let mut buf = Scratch::default();
     let reach = |dir: DVec3, buf: &mut Scratch| {
         let ray = Ray::new(10.0 * dir + DVec3::new(0.1, 0.0, 0.0), -dir);
-        let h = w.intersect(&ray, 0.0, f64::INFINITY, buf).unwrap();
+        let h = w.intersect(&ray, (0.0, f64::INFINITY), None, buf).unwrap();
         (h, (h.point - DVec3::new(0.1, 0.0, 0.0)).length())
     };
     let (hit, _) = reach(DVec3::Z, &mut buf);

@@ -149,11 +149,17 @@ impl Scene {
     /// Walks the BVH and hands each cylinder that may be hit within `(tmin, tmax)` to
     /// `exact(object, cylinder, tmax)` (at most once per query), which returns the new `tmax`
     /// as [`Bvh::traverse`]'s closure does.
+    ///
+    /// `leaving`: the cylinder the ray leaves, its origin on that cylinder's surface (a ray a
+    /// renderer spawns from a hit). The cull cannot clear a piece the origin lies within reach
+    /// of, and for a piece about the origin it would halve the axis to its last level before
+    /// saying so: that cylinder goes to the exact test without it. The answer is the same (the
+    /// cull only ever clears cylinders the exact test would find no hit on).
     fn candidates(
         &self,
         ray: &Ray,
-        tmin: f64,
-        tmax: f64,
+        (tmin, tmax): (f64, f64),
+        leaving: Option<u32>,
         tested: &mut Vec<u32>,
         mut exact: impl FnMut(u32, &GeneralizedCylinder, f64) -> f64,
     ) {
@@ -182,12 +188,14 @@ impl Scene {
                 if tested.contains(&i) {
                     return tmax;
                 }
-                // The cull reads the stored axis; the cylinder is rebuilt only past it.
-                let (axis, reach) = self.cylinders.axis_and_reach(i as usize);
-                let space = space.get_or_insert_with(|| RaySpace::new(ray));
-                let piece = Piece(key & ((1 << PIECE_BITS) - 1));
-                if !space.may_hit_axis_piece(&axis, reach, piece, tmin, tmax) {
-                    return tmax;
+                if leaving != Some(i) {
+                    // The cull reads the stored axis; the cylinder is rebuilt only past it.
+                    let (axis, reach) = self.cylinders.axis_and_reach(i as usize);
+                    let space = space.get_or_insert_with(|| RaySpace::new(ray));
+                    let piece = Piece(key & ((1 << PIECE_BITS) - 1));
+                    if !space.may_hit_axis_piece(&axis, reach, piece, tmin, tmax) {
+                        return tmax;
+                    }
                 }
                 tested.push(i);
                 exact(i, &self.cylinders.get(i as usize), tmax)
@@ -203,23 +211,25 @@ impl Scene {
         tmax: f64,
         scratch: &mut Scratch,
     ) -> Option<SceneHit> {
-        self.nearest_hit_where(ray, tmin, tmax, scratch, |_| true)
+        self.nearest_hit_where(ray, (tmin, tmax), None, scratch, |_| true)
     }
 
     /// The nearest hit with `tmin < t < tmax`, where on the cylinders for which `exits_stop`
     /// is false only entries count (`normal . d <= 0`,
     /// [`GeneralizedCylinder::intersect_first_entering_with`]): a renderer skips the exits of
-    /// fibers it shades as far-field scatterers this way.
+    /// fibers it shades as far-field scatterers this way. `leaving`: the cylinder whose
+    /// surface the ray leaves, if any (the same answer, found faster).
     pub fn nearest_hit_where(
         &self,
         ray: &Ray,
-        tmin: f64,
-        tmax: f64,
+        (tmin, tmax): (f64, f64),
+        leaving: Option<u32>,
         scratch: &mut Scratch,
         exits_stop: impl Fn(u32) -> bool,
     ) -> Option<SceneHit> {
         let mut best: Option<SceneHit> = None;
-        self.candidates(ray, tmin, tmax, &mut scratch.tested, |i, c, _| {
+        let range = (tmin, tmax);
+        self.candidates(ray, range, leaving, &mut scratch.tested, |i, c, _| {
             // Exclusive upper bound for the cylinder: up to and including the best t, for ties.
             let limit = best.map_or(tmax, |b| b.hit.t.next_up());
             if let Some(hit) = first_hit(c, ray, tmin, limit, exits_stop(i))
@@ -243,32 +253,40 @@ impl Scene {
     ) {
         let start = out.len();
         let hits = &mut scratch.hits;
-        self.candidates(ray, tmin, tmax, &mut scratch.tested, |i, c, tmax| {
-            hits.clear();
-            c.intersect_all(ray, tmin, tmax, hits);
-            out.extend(hits.iter().map(|&hit| SceneHit { hit, object: i }));
-            tmax
-        });
+        self.candidates(
+            ray,
+            (tmin, tmax),
+            None,
+            &mut scratch.tested,
+            |i, c, tmax| {
+                hits.clear();
+                c.intersect_all(ray, tmin, tmax, hits);
+                out.extend(hits.iter().map(|&hit| SceneHit { hit, object: i }));
+                tmax
+            },
+        );
         sort_hits(&mut out[start..]);
     }
 
     /// Whether anything is hit with `tmin < t < tmax` (stops at the first hit found).
     pub fn any_hit(&self, ray: &Ray, tmin: f64, tmax: f64, scratch: &mut Scratch) -> bool {
-        self.any_hit_where(ray, tmin, tmax, scratch, |_| true)
+        self.any_hit_where(ray, (tmin, tmax), None, scratch, |_| true)
     }
 
     /// Whether any hit lies within `tmin < t < tmax`, where on the cylinders for which
-    /// `exits_stop` is false only entries count (as [`Self::nearest_hit_where`]).
+    /// `exits_stop` is false only entries count, and `leaving` names the cylinder the ray
+    /// leaves (as [`Self::nearest_hit_where`]).
     pub fn any_hit_where(
         &self,
         ray: &Ray,
-        tmin: f64,
-        tmax: f64,
+        (tmin, tmax): (f64, f64),
+        leaving: Option<u32>,
         scratch: &mut Scratch,
         exits_stop: impl Fn(u32) -> bool,
     ) -> bool {
         let mut found = false;
-        self.candidates(ray, tmin, tmax, &mut scratch.tested, |i, c, tmax| {
+        let range = (tmin, tmax);
+        self.candidates(ray, range, leaving, &mut scratch.tested, |i, c, tmax| {
             found = c.any_hit(ray, tmin, tmax, !exits_stop(i));
             if found { f64::NEG_INFINITY } else { tmax }
         });
@@ -306,6 +324,92 @@ mod tests {
     use crate::scenes::synth::hair_model;
     use gencyl::{Strand, StrandFraming};
     use glam::DVec3;
+
+    /// A ray spawned from a hit, with the cylinder it leaves named, gets the same answers as
+    /// without (nearest hit and any hit, with exits counting or, as for far-field fibers, not):
+    /// rays from points on the surface (or just off it, as a renderer offsets them) into the
+    /// fiber and out of it, nearly along it (1e-12 to 1e-1 rad off the tangent) and tangent
+    /// to it, and across it down to 1e-15 rad off the normal plane. Enough of them have their
+    /// nearest hit on the cylinder they leave (its far side), so that a query skipping that
+    /// cylinder's exact test, not just its cull, would fail.
+    #[test]
+    fn rays_leaving_a_named_cylinder_get_the_same_answers() {
+        let (points, _) = hair_model(40, 8, 3);
+        let mut cylinders = vec![];
+        let mut controls = StrandControls::default();
+        for (k, p) in points.iter().enumerate() {
+            let strand = Strand {
+                points: Strand::interpolating_control_points(p),
+                radius: [0.004, 0.002 + 0.002 * (k % 2) as f64],
+                ellipticity: 1.0,
+                twist: [0.0, 0.0],
+                section: Default::default(),
+            };
+            controls.push(cylinders.len(), &strand.spline_controls(), strand.taper());
+            cylinders.extend(strand.cylinders().unwrap());
+        }
+        let scene = Scene::with_strands(cylinders.clone(), controls);
+        let mut rng = Rng::from_seed(5);
+        let (mut a, mut b) = (Scratch::default(), Scratch::default());
+        let (mut own, mut other, mut blocked) = (0, 0, 0);
+        for i in 0..4000 {
+            let object = rng.range(0.0, cylinders.len() as f64) as u32;
+            let c = &cylinders[object as usize];
+            let (u, v) = (rng.range(0.02, 0.98), rng.range(0.0, std::f64::consts::TAU));
+            let f = c.frame(u);
+            let across = (f.n * v.cos() + f.b * v.sin()).normalize();
+            let side = f.t.cross(across);
+            let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+            let d = match i / 2 % 4 {
+                // Into the fiber or out of it, in any direction on that side.
+                0 => {
+                    let d = rng.unit_vector();
+                    if d.dot(across) * sign < 0.0 { -d } else { d }
+                }
+                // Nearly along the fiber, tilted in or out.
+                1 => f.t + across * sign * 10f64.powf(rng.range(-12.0, -1.0)),
+                // Tangent to the section.
+                2 => side,
+                // Across the fiber, off the normal plane by 1e-15 .. 1e-1 rad or not at all.
+                _ => {
+                    let off = if i % 16 < 2 {
+                        0.0
+                    } else {
+                        10f64.powf(rng.range(-15.0, -1.0))
+                    };
+                    across * sign + f.t * off
+                }
+            };
+            // On the surface, or off it by up to 1e-9 of the radius either way.
+            let offset = rng.range(-1e-9, 1e-9) * 0.004 * (i % 3) as f64;
+            let ray = Ray::new(c.surface_point(u, v) + across * offset, d.normalize());
+            let range = (1e-9, f64::INFINITY);
+            for far_field in [false, true] {
+                let exits_stop = |_: u32| !far_field;
+                let named = scene.nearest_hit_where(&ray, range, Some(object), &mut a, exits_stop);
+                let plain = scene.nearest_hit_where(&ray, range, None, &mut b, exits_stop);
+                assert_eq!(
+                    named, plain,
+                    "{ray:?} leaving {object}, far field {far_field}"
+                );
+                let named = scene.any_hit_where(&ray, range, Some(object), &mut a, exits_stop);
+                let plain = scene.any_hit_where(&ray, range, None, &mut b, exits_stop);
+                assert_eq!(
+                    named, plain,
+                    "{ray:?} leaving {object}, far field {far_field}"
+                );
+                blocked += usize::from(plain);
+            }
+            match scene.nearest_hit(&ray, range.0, range.1, &mut b) {
+                Some(h) if h.object == object => own += 1,
+                Some(_) => other += 1,
+                None => {}
+            }
+        }
+        assert!(own > 1000, "{own} nearest hits on the cylinder left");
+        assert!(other > 50, "{other} nearest hits on other cylinders");
+        assert!(blocked > 2000, "{blocked} blocked of 8000 queries");
+    }
 
     /// Strands named by their control points store their segments by them: the same hits to
     /// the bit as the same cylinders stored without them, for rays across the fibers (down to

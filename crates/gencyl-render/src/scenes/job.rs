@@ -193,7 +193,7 @@ fn sees_geometry(world: &World, camera: &Camera) -> bool {
             let x = (i as f64 + 0.5) / 64.0 * camera.width as f64;
             let y = (j as f64 + 0.5) / 48.0 * camera.height as f64;
             world
-                .intersect(&camera.ray(x, y), 0.0, f64::INFINITY, &mut scratch)
+                .intersect(&camera.ray(x, y), (0.0, f64::INFINITY), None, &mut scratch)
                 .is_some()
         })
     })

@@ -65,7 +65,7 @@ pub fn sample_ray(
     let miss_rgb = |d: DVec3| world.environment.map_or(DVec3::ZERO, |e| e.radiance(d));
     match settings.integrator {
         Integrator::Normals | Integrator::Uv | Integrator::Depth => {
-            let Some(h) = world.intersect(ray, 0.0, f64::INFINITY, &mut buf.scratch) else {
+            let Some(h) = world.intersect(ray, (0.0, f64::INFINITY), None, &mut buf.scratch) else {
                 return [0.0, 0.0, 0.0, 0.0, f64::INFINITY];
             };
             let c = match (settings.integrator, h.surface) {
@@ -137,8 +137,10 @@ fn radiance(
     let mut prev_point = ray.origin;
     let mut emission_only = false;
     let mut first_hit = false;
+    // The surface `ray` leaves (none for the camera's).
+    let mut leaving = None;
     for depth in 0..=settings.max_depth {
-        let Some(h) = world.intersect(&ray, 0.0, f64::INFINITY, &mut buf.scratch) else {
+        let Some(h) = world.intersect(&ray, (0.0, f64::INFINITY), leaving, &mut buf.scratch) else {
             if let Some(e) = world.environment {
                 let w = if prev_pdf.is_infinite() {
                     1.0
@@ -193,6 +195,7 @@ fn radiance(
         prev_pdf = s.pdf;
         prev_point = h.point;
         ray = spawn(h.point, h.normal, s.wi);
+        leaving = Some(h.surface);
         if direct_only && !bsdf.is_delta() {
             emission_only = true;
         }
@@ -237,7 +240,7 @@ fn next_event(
     } else {
         f64::INFINITY
     };
-    if world.occluded(&shadow, 0.0, reach, &mut buf.scratch) {
+    if world.occluded(&shadow, (0.0, reach), Some(h.surface), &mut buf.scratch) {
         return DVec3::ZERO;
     }
     let w = if ls.pdf.is_infinite() {

@@ -33,6 +33,14 @@ pub enum Surface {
     Light(u32),
 }
 
+/// The cylinder of a fiber surface.
+fn fiber(s: Option<Surface>) -> Option<u32> {
+    match s {
+        Some(Surface::Fiber { object, .. }) => Some(object),
+        _ => None,
+    }
+}
+
 /// The nearest hit of a ray on the world.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WorldHit {
@@ -145,17 +153,21 @@ impl World {
         !self.far_field[self.cylinder_materials[object as usize] as usize]
     }
 
-    /// The nearest hit with `tmin < t < tmax` (exits of far-field fibers do not count).
+    /// The nearest hit with `tmin < t < tmax` (exits of far-field fibers do not count), of a
+    /// ray that leaves the surface `leaving` if it is spawned from a hit (the same answer,
+    /// found faster: [`Scene::nearest_hit_where`]).
     pub fn intersect(
         &self,
         ray: &Ray,
-        tmin: f64,
-        tmax: f64,
+        (tmin, tmax): (f64, f64),
+        leaving: Option<Surface>,
         scratch: &mut Scratch,
     ) -> Option<WorldHit> {
         let mut best: Option<WorldHit> = self
             .scene
-            .nearest_hit_where(ray, tmin, tmax, scratch, |i| self.exits_stop(i))
+            .nearest_hit_where(ray, (tmin, tmax), fiber(leaving), scratch, |i| {
+                self.exits_stop(i)
+            })
             .map(|SceneHit { hit, object }| WorldHit {
                 t: hit.t,
                 point: hit.point,
@@ -201,8 +213,14 @@ impl World {
     }
 
     /// Whether anything blocks the ray within `tmin < t < tmax` (exits of far-field fibers
-    /// do not).
-    pub fn occluded(&self, ray: &Ray, tmin: f64, tmax: f64, scratch: &mut Scratch) -> bool {
+    /// do not), for a ray that leaves the surface `leaving` if any (as [`World::intersect`]).
+    pub fn occluded(
+        &self,
+        ray: &Ray,
+        (tmin, tmax): (f64, f64),
+        leaving: Option<Surface>,
+        scratch: &mut Scratch,
+    ) -> bool {
         let hit = |t: f64| t > tmin && t < tmax;
         self.spheres()
             .any(|(s, _)| s.crossings(ray).is_some_and(|(t0, t1)| hit(t0) || hit(t1)))
@@ -212,7 +230,9 @@ impl World {
                 .any(|(p, _)| p.crossing(ray).is_some_and(hit))
             || self
                 .scene
-                .any_hit_where(ray, tmin, tmax, scratch, |i| self.exits_stop(i))
+                .any_hit_where(ray, (tmin, tmax), fiber(leaving), scratch, |i| {
+                    self.exits_stop(i)
+                })
     }
 
     /// Every boundary crossing of a solid (cylinders and spheres; planes bound nothing)
