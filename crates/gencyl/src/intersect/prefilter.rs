@@ -104,14 +104,14 @@ fn reach_polynomial<C: CrossSection, S: SweepRule>(
         -across(c[3]),
     ];
     let mut f = [0.0; DEGREE + 1];
-    let mut size = 0.0f64;
     for i in 0..4 {
         for j in 0..4 {
-            let t = e[i].dot(e[j]);
-            f[i + j] += t;
-            size = size.max(e[i].length() * e[j].length());
+            f[i + j] += e[i].dot(e[j]);
         }
     }
+    // The largest product of two terms' lengths.
+    let longest = e.iter().fold(0.0f64, |m, x| m.max(x.length()));
+    let size = longest * longest;
     let dr = r[1] - r[0];
     f[0] -= r[0] * r[0];
     f[1] -= 2.0 * r[0] * dr;
@@ -144,7 +144,7 @@ pub(crate) fn candidate_ranges<C: CrossSection, S: SweepRule>(
     // Rounding in forming the coefficients: relative to the terms that cancel in them.
     let eps = 1e-12 * size;
     let mut out: ArrayVec<(f64, f64), MAX_RANGES> = ArrayVec::new();
-    match core_range(&power).filter(|_| cut) {
+    match cut.then(|| core_range(&power)).flatten() {
         Some((a, c)) => {
             if a > 0.0 {
                 cover(&restrict(&b, 0.0, a), (0.0, a), eps, &mut out);
@@ -206,10 +206,11 @@ fn cover(
 /// `None` where there is no such dip to cut out cheaply (the ray stays outside the reach, the
 /// dip is not a single well-curved one, or it spans much of the axis).
 ///
-/// `Q` (power coefficients `f`) at nine points picks a start, Newton's method on `Q'` finds the
-/// minimum `u*` near it, and the dip `Q(u*) + Q''(u*) (u - u*)^2 / 2 <= 0` is taken 1.5 times
-/// as wide, plus a margin. Only speed depends on the estimate: the caller keeps this range and
-/// searches the rest rigorously.
+/// Newton's method on `Q'` (power coefficients `f`) from the middle, `u <- u - Q'(u) / Q''(u)`,
+/// finds the minimum `u*` (on a nearly straight axis `Q` is nearly quadratic, and the first
+/// step lands near it), stopping once a step is below `RESOLUTION / 64`; the dip
+/// `Q(u*) + Q''(u*) (u - u*)^2 / 2 <= 0` is taken 1.5 times as wide, plus a margin. Only speed
+/// depends on the estimate: the caller keeps this range and searches the rest rigorously.
 fn core_range(f: &[f64; DEGREE + 1]) -> Option<(f64, f64)> {
     let q = |u: f64| f.iter().rev().fold(0.0, |acc, &c| acc * u + c);
     let q1 = |u: f64| {
@@ -222,15 +223,18 @@ fn core_range(f: &[f64; DEGREE + 1]) -> Option<(f64, f64)> {
             .rev()
             .fold(0.0, |acc, k| acc * u + (k * (k - 1)) as f64 * f[k])
     };
-    let mut u = (0..=8)
-        .map(|i| i as f64 / 8.0)
-        .min_by(|&a, &b| q(a).total_cmp(&q(b)))?;
-    for _ in 0..4 {
+    let mut u = 0.5;
+    for _ in 0..6 {
         let (g, h) = (q1(u), q2(u));
         if !(h > 0.0) {
             return None;
         }
-        u = (u - g / h).clamp(0.0, 1.0);
+        let next = (u - g / h).clamp(0.0, 1.0);
+        let step = (next - u).abs();
+        u = next;
+        if step < RESOLUTION / 64.0 {
+            break;
+        }
     }
     let (value, curve) = (q(u), q2(u));
     if !(value < 0.0 && curve > 0.0) {
