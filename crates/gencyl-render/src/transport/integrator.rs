@@ -230,7 +230,7 @@ fn next_event(
     let Some(ls) = ls else {
         return DVec3::ZERO;
     };
-    let f = bsdf.eval(wo, ls.wi);
+    let (f, bsdf_pdf) = bsdf.eval_pdf(wo, ls.wi);
     if f == DVec3::ZERO || ls.value == DVec3::ZERO {
         return DVec3::ZERO;
     }
@@ -246,7 +246,7 @@ fn next_event(
     let w = if ls.pdf.is_infinite() {
         1.0
     } else {
-        power_heuristic(pick * ls.pdf, bsdf.pdf(wo, ls.wi))
+        power_heuristic(pick * ls.pdf, bsdf_pdf)
     };
     f * ls.value * (w / pick)
 }

@@ -452,12 +452,17 @@ impl<'a> ExactHairBsdf<'a> {
 
     /// `f(wo, wi) |cos θ_i|`.
     pub fn eval(&self, wo: DVec3, wi: DVec3) -> DVec3 {
-        self.eval_pdf(&self.outgoing(wo), wi).0
+        self.eval_and_pdf(wo, wi).0
     }
 
     /// Solid-angle density of [`ExactHairBsdf::sample`] choosing `wi`.
     pub fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
-        self.eval_pdf(&self.outgoing(wo), wi).1
+        self.eval_and_pdf(wo, wi).1
+    }
+
+    /// [`ExactHairBsdf::eval`] and [`ExactHairBsdf::pdf`] at once.
+    pub fn eval_and_pdf(&self, wo: DVec3, wi: DVec3) -> (DVec3, f64) {
+        self.eval_pdf(&self.outgoing(wo), wi)
     }
 
     /// Importance-samples `wi` from 3 uniform numbers: `u[0]` picks the lobe, the row, the bin

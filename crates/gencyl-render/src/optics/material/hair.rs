@@ -232,12 +232,17 @@ impl HairBsdf {
     /// `f(wo, wi) |cos θ_i|` (pbrt's frame): the integrand weight for radiance,
     /// `L_o = ∫ eval(wo, wi) L_i dω_i`, i.e. `Σ_p M_p A_p N_p`.
     pub fn eval(&self, wo: DVec3, wi: DVec3) -> DVec3 {
-        self.eval_pdf(&self.outgoing(wo), wi).0
+        self.eval_and_pdf(wo, wi).0
     }
 
     /// Solid-angle density of [`HairBsdf::sample`] choosing `wi`.
     pub fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
-        self.eval_pdf(&self.outgoing(wo), wi).1
+        self.eval_and_pdf(wo, wi).1
+    }
+
+    /// [`HairBsdf::eval`] and [`HairBsdf::pdf`] at once (one pass over the lobes).
+    pub fn eval_and_pdf(&self, wo: DVec3, wi: DVec3) -> (DVec3, f64) {
+        self.eval_pdf(&self.outgoing(wo), wi)
     }
 
     /// Importance-samples `wi` given `wo` and 3 uniform numbers in `[0, 1)`: `u[0]` picks the

@@ -247,6 +247,13 @@ impl HairModel<'_> {
         }
     }
 
+    fn eval_and_pdf(&self, wo: DVec3, wi: DVec3) -> (DVec3, f64) {
+        match self {
+            HairModel::Chiang(b) => b.eval_and_pdf(wo, wi),
+            HairModel::Exact(b) => b.eval_and_pdf(wo, wi),
+        }
+    }
+
     fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<hair::HairSample> {
         match self {
             HairModel::Chiang(b) => b.sample(wo, u),
@@ -370,6 +377,16 @@ impl<'a> Bsdf<'a> {
                 model.pdf(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
             }
             Bsdf::Dielectric { .. } => 0.0,
+        }
+    }
+
+    /// [`Bsdf::eval`] and [`Bsdf::pdf`] at once (the hair model shares its work between them).
+    pub fn eval_pdf(&self, wo: DVec3, wi: DVec3) -> (DVec3, f64) {
+        match *self {
+            Bsdf::Hair { ref model, frame } => {
+                model.eval_and_pdf(Self::to_local(&frame, wo), Self::to_local(&frame, wi))
+            }
+            _ => (self.eval(wo, wi), self.pdf(wo, wi)),
         }
     }
 
