@@ -138,6 +138,9 @@ pub struct HairBsdf {
     lobes: Longitudinal,
     /// Logistic scale.
     s: f64,
+    /// The terms of one outgoing direction, made once ([`HairBsdf::for_outgoing`]): a
+    /// renderer asks for the same `wo` for its light sample and its BSDF sample.
+    kept: Option<(DVec3, Outgoing)>,
 }
 
 /// Chiang et al.'s longitudinal lobes `M_p(θ_i; θ_o^p)`, shared by every hair model here.
@@ -205,6 +208,7 @@ pub struct HairSample {
 }
 
 /// Everything that depends on `wo` only.
+#[derive(Clone, Copy, Debug)]
 struct Outgoing {
     phi_o: f64,
     gamma_t: f64,
@@ -226,6 +230,24 @@ impl HairBsdf {
             sigma_a: params.sigma_a,
             lobes: Longitudinal::new(params.beta_m, params.alpha),
             s: logistic_scale(params.beta_n),
+            kept: None,
+        }
+    }
+
+    /// The same BSDF with the terms of `wo` made now and kept: the same values for every
+    /// `wo`, found faster for this one.
+    pub fn for_outgoing(self, wo: DVec3) -> Self {
+        HairBsdf {
+            kept: Some((wo, self.outgoing(wo))),
+            ..self
+        }
+    }
+
+    /// The terms of `wo`: the kept ones if they are of `wo`.
+    fn terms(&self, wo: DVec3) -> Outgoing {
+        match self.kept {
+            Some((w, o)) if w == wo => o,
+            _ => self.outgoing(wo),
         }
     }
 
@@ -242,14 +264,14 @@ impl HairBsdf {
 
     /// [`HairBsdf::eval`] and [`HairBsdf::pdf`] at once (one pass over the lobes).
     pub fn eval_and_pdf(&self, wo: DVec3, wi: DVec3) -> (DVec3, f64) {
-        self.eval_pdf(&self.outgoing(wo), wi)
+        self.eval_pdf(&self.terms(wo), wi)
     }
 
     /// Importance-samples `wi` given `wo` and 3 uniform numbers in `[0, 1)`: `u[0]` picks the
     /// lobe and then its azimuth, `u[1], u[2]` the longitudinal angle. `None` when nothing
     /// scatters (e.g. `eta = 1` with opaque fibers).
     pub fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<HairSample> {
-        let o = self.outgoing(wo);
+        let o = self.terms(wo);
         let (p, uc) = pick_rescaled(o.lobe_pdf.into_iter(), u[0])?;
 
         let (sin_i, cos_i) = self.lobes.sample(p, o.rot[p], [u[1], u[2]]);
@@ -332,7 +354,7 @@ impl HairBsdf {
     /// Per lobe `p`, the azimuthal term `A_p N_p(phi)` at `wi` (without the longitudinal
     /// `M_p`): what a measurement of the fiber's azimuthal scattering compares with.
     pub fn azimuthal_terms(&self, wo: DVec3, wi: DVec3) -> [DVec3; P_MAX + 1] {
-        let o = self.outgoing(wo);
+        let o = self.terms(wo);
         let phi = wi.z.atan2(wi.y) - o.phi_o;
         std::array::from_fn(|p| {
             let n = if p < P_MAX {
@@ -638,6 +660,30 @@ mod tests {
                 rel < 1e-9,
                 "{a} vs {b} (rel {rel:e}), h {h}, wo {wo}, wi {wi}"
             );
+        }
+    }
+
+    /// The BSDF with one direction's terms kept gives every value to the bit as without,
+    /// for that direction and for others.
+    #[test]
+    fn kept_outgoing_terms_change_no_value() {
+        let mut rng = SampleRng::from_seed(23);
+        for _ in 0..2_000 {
+            let sig = DVec3::new(rng.uniform(), rng.uniform(), 3.0 * rng.uniform());
+            let prm = params(rng.range(0.1, 1.0), rng.range(0.1, 1.0), TILT, sig);
+            let plain = HairBsdf::new(&prm, 2.0 * rng.uniform() - 1.0);
+            let kept_wo = uniform_sphere(rng.uniform2());
+            let kept = plain.for_outgoing(kept_wo);
+            for wo in [kept_wo, uniform_sphere(rng.uniform2())] {
+                let (wi, u) = (uniform_sphere(rng.uniform2()), u3(&mut rng));
+                assert_eq!(kept.eval_and_pdf(wo, wi), plain.eval_and_pdf(wo, wi));
+                assert_eq!(kept.azimuthal_terms(wo, wi), plain.azimuthal_terms(wo, wi));
+                let (a, b) = (kept.sample(wo, u), plain.sample(wo, u));
+                assert_eq!(
+                    a.map(|s| (s.wi, s.weight, s.pdf)),
+                    b.map(|s| (s.wi, s.weight, s.pdf))
+                );
+            }
         }
     }
 

@@ -318,10 +318,10 @@ impl<'a> Bsdf<'a> {
                             s.aspect,
                             Self::to_local(&frame, s.major),
                         )),
-                        _ => HairModel::Chiang(HairBsdf::new(
-                            &params,
-                            azimuthal_offset(frame[0], at.normal, wo),
-                        )),
+                        _ => HairModel::Chiang(
+                            HairBsdf::new(&params, azimuthal_offset(frame[0], at.normal, wo))
+                                .for_outgoing(Self::to_local(&frame, wo)),
+                        ),
                     };
                     Bsdf::Hair { model, frame }
                 }
