@@ -156,6 +156,9 @@ pub struct BsdfSample {
 }
 
 /// A material at a hit, in world space.
+// Made per hit on the stack and dropped with it: the hair variant's kept terms (a few hundred
+// bytes) cost less there than a box would.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug)]
 pub enum Bsdf<'a> {
     /// Lambert about `n`, turned to the viewer's side.
@@ -224,6 +227,7 @@ pub fn refract(wo: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
 }
 
 /// The hair models, in their local frame.
+#[allow(clippy::large_enum_variant)] // as `Bsdf`
 #[derive(Clone, Copy, Debug)]
 pub enum HairModel<'a> {
     /// Chiang et al. 2016 ([`hair`]).
