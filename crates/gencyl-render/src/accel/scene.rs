@@ -338,6 +338,23 @@ mod tests {
     use gencyl::{Strand, StrandFraming};
     use glam::DVec3;
 
+    /// The cylinders of `hair_model(strands, segments, seed)`'s strands, each made by `strand`
+    /// (its number, its interpolating control points) with its framing, and their controls.
+    fn strands(
+        (count, segments, seed): (usize, usize, u64),
+        strand: impl Fn(usize, Vec<DVec3>) -> (Strand, StrandFraming),
+    ) -> (Vec<GeneralizedCylinder>, StrandControls) {
+        let (points, _) = hair_model(count, segments, seed);
+        let mut cylinders = vec![];
+        let mut controls = StrandControls::default();
+        for (k, p) in points.iter().enumerate() {
+            let (s, framing) = strand(k, Strand::interpolating_control_points(p));
+            controls.push(cylinders.len(), &s.spline_controls(), s.taper());
+            cylinders.extend(s.cylinders_with(framing).unwrap());
+        }
+        (cylinders, controls)
+    }
+
     /// A ray spawned from a hit, with the cylinder it leaves named, gets the same answers as
     /// without (nearest hit and any hit, with exits counting or, as for far-field fibers, not):
     /// rays from points on the surface (or just off it, as a renderer offsets them) into the
@@ -348,20 +365,16 @@ mod tests {
     /// and never making it, would fail.
     #[test]
     fn rays_leaving_a_named_cylinder_get_the_same_answers() {
-        let (points, _) = hair_model(40, 8, 3);
-        let mut cylinders = vec![];
-        let mut controls = StrandControls::default();
-        for (k, p) in points.iter().enumerate() {
+        let (cylinders, controls) = strands((40, 8, 3), |k, points| {
             let strand = Strand {
-                points: Strand::interpolating_control_points(p),
+                points,
                 radius: [0.004, 0.002 + 0.002 * (k % 2) as f64],
                 ellipticity: 1.0,
                 twist: [0.0, 0.0],
                 section: Default::default(),
             };
-            controls.push(cylinders.len(), &strand.spline_controls(), strand.taper());
-            cylinders.extend(strand.cylinders().unwrap());
-        }
+            (strand, StrandFraming::RotationMinimizing)
+        });
         let scene = Scene::with_strands(cylinders.clone(), controls);
         let mut rng = Rng::from_seed(5);
         let (mut a, mut b) = (Scratch::default(), Scratch::default());
@@ -431,21 +444,17 @@ mod tests {
     /// from points on their surface and at random; and at least 36 bytes a segment less.
     #[test]
     fn strands_by_their_control_points_give_the_same_hits() {
-        let (points, _) = hair_model(60, 10, 5);
-        let mut cylinders = vec![];
-        let mut controls = StrandControls::default();
-        for (k, p) in points.iter().enumerate() {
+        let (cylinders, controls) = strands((60, 10, 5), |k, points| {
             let strand = Strand {
-                points: Strand::interpolating_control_points(p),
+                points,
                 radius: [0.004, 0.0015],
                 ellipticity: [1.0, 0.7][k % 2],
                 twist: [0.0, 2.0 * (k % 3) as f64],
                 section: Default::default(),
             };
             let framing = [StrandFraming::RotationMinimizing, StrandFraming::Frenet][k % 5 / 4];
-            controls.push(cylinders.len(), &strand.spline_controls(), strand.taper());
-            cylinders.extend(strand.cylinders_with(framing).unwrap());
-        }
+            (strand, framing)
+        });
         let plain = Scene::new(cylinders.clone());
         let named = Scene::with_strands(cylinders.clone(), controls);
         let saved = plain.memory_bytes() - named.memory_bytes();
