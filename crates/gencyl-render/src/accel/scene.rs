@@ -153,8 +153,9 @@ impl Scene {
     /// `leaving`: the cylinder the ray leaves, its origin on that cylinder's surface (a ray a
     /// renderer spawns from a hit). The cull cannot clear a piece the origin lies within reach
     /// of, and for a piece about the origin it would halve the axis to its last level before
-    /// saying so: that cylinder goes to the exact test without it. The answer is the same (the
-    /// cull only ever clears cylinders the exact test would find no hit on).
+    /// saying so: that cylinder goes to the exact test without it. The answer is the same for
+    /// any cylinder named (the cull only ever clears cylinders the exact test would find no
+    /// hit on); naming the right one only makes it faster.
     fn candidates(
         &self,
         ray: &Ray,
