@@ -174,6 +174,48 @@ fn tmin_drops_nearer_hits() {
     assert_eq!(got, got2, "--tmin=-10 and --tmin -10");
 }
 
+/// `--tmin=-inf` takes the whole line, as a very negative finite `tmin` does, on a scene whose
+/// BVH has empty slots and rays running toward negative coordinates (the box test once entered
+/// the empty slots of such rays, and the walk panicked).
+#[test]
+fn tmin_of_minus_infinity_takes_the_whole_line() {
+    // Sixty bent fibers in rows of eight (a BVH with empty slots in its nodes).
+    let mut scene = String::new();
+    for i in 0..60 {
+        let (x, z) = ((i % 8) as f64 * 0.5, (i / 8) as f64 * 0.4);
+        let (a, b, c, e) = (x + 0.05, x - 0.05, z + 0.1, z - 0.1);
+        scene += &format!(
+            "[[cylinder]]\nbezier = [[{x}, 0, {z}], [{a}, 0.3, {c}], [{b}, 0.6, {e}], [{x}, 1, {z}]]\n\
+             major_radius = [0.1, 0.1]\n\n"
+        );
+    }
+    let scene = scratch("tmin-inf.toml", scene.as_bytes());
+    // Down through the grid and along it, toward negative coordinates.
+    let mut rays = String::from("ox,oy,oz,dx,dy,dz\n");
+    for i in 0..40 {
+        let t = i as f64 / 40.0;
+        let (x, y, dx) = (3.5 - 3.5 * t, 0.5 + 0.3 * t, -0.3 + 0.2 * t);
+        rays += &format!("{x},{y},4,{dx},-0.1,-1\n");
+        rays += &format!("5,{t},{},-1,0,{}\n", 3.0 * t, 0.01 - 0.02 * t);
+    }
+    let rays = scratch("tmin-inf.csv", rays.as_bytes());
+    for all in [false, true] {
+        let args = |tmin: &'static str| {
+            let mut a = vec!["raycast", tmin, path(&scene), path(&rays)];
+            if all {
+                a.insert(1, "--all");
+            }
+            a
+        };
+        let whole = ok(&args("--tmin=-inf"), None);
+        assert_eq!(whole, ok(&args("--tmin=-1e300"), None), "all: {all}");
+        assert!(
+            rows(&whole).len() > 40,
+            "the rays cross the fibers: {whole}"
+        );
+    }
+}
+
 #[test]
 fn dash_reads_standard_input() {
     let (scene, rays) = straight();

@@ -152,8 +152,8 @@ impl Scene {
     ///
     /// `leaving`: the cylinder the ray leaves, its origin on that cylinder's surface (a ray a
     /// renderer spawns from a hit). The cull cannot clear a piece the origin lies within reach
-    /// of, and for a piece about the origin it would halve the axis to its last level before
-    /// saying so: that cylinder goes to the exact test without it. The answer is the same for
+    /// of, and for a piece about the origin it would halve the axis, often to its last level,
+    /// before saying so: that cylinder goes to the exact test without it. The answer is the same for
     /// any cylinder named (the cull only ever clears cylinders the exact test would find no
     /// hit on); naming the right one only makes it faster.
     fn candidates(
@@ -298,7 +298,8 @@ impl Scene {
                 reached_left = true;
                 return tmax;
             }
-            found = c.any_hit(ray, tmin, tmax, !exits_stop(i));
+            // Once found, stays found (with `tmin = -inf` the walk goes on after a hit).
+            found |= c.any_hit(ray, tmin, tmax, !exits_stop(i));
             if found { f64::NEG_INFINITY } else { tmax }
         });
         if let Some(i) = leaving.filter(|_| reached_left && !found) {
@@ -427,6 +428,15 @@ mod tests {
                     "{ray:?} leaving {object}, far field {far_field}"
                 );
                 blocked += usize::from(plain);
+                // The whole line (`tmin = -inf`, which the box test once let into empty slots).
+                let line = (f64::NEG_INFINITY, f64::INFINITY);
+                let any = scene.any_hit_where(&ray, line, Some(object), &mut a, exits_stop);
+                let nearest = scene.nearest_hit_where(&ray, line, None, &mut b, exits_stop);
+                assert_eq!(
+                    any,
+                    nearest.is_some(),
+                    "{ray:?} leaving {object}, the whole line"
+                );
             }
             match scene.nearest_hit(&ray, range.0, range.1, &mut b) {
                 Some(h) if h.object == object => own += 1,

@@ -311,8 +311,11 @@ trait BoxTest {
 /// `o - c`. On a slab `lo..hi` the ray is inside for `t` between `(lo - o) / d` and
 /// `(hi - o) / d`. No NaN arises: the origin is finite, a zero direction component takes the
 /// flat case (`0 * inf` would be NaN), and `(+-inf - o) * inv` (an empty slot's bound) is
-/// infinite. The range ends at `f64::MAX` at most, so that an empty slot (`+inf..+inf`) is
-/// never entered: a box whose entry overflows to `+inf` could hold no hit at a finite `t`.
+/// infinite. The range runs from `-f64::MAX` at least to `f64::MAX` at most, so that an empty
+/// slot (`+inf..+inf`) is never entered, whichever way the ray runs (its slab is `+inf..+inf`
+/// in `t` where `d > 0` and `-inf..-inf` where `d < 0`; `tmin = -inf` once let the latter in):
+/// a box whose entry overflows to `+inf`, or whose exit to `-inf`, could hold no hit at a
+/// finite `t`.
 struct Slabs {
     /// `o - c` and `1 / d`, as arrays (indexing a `DVec3` by axis costs a branch per access).
     origin: [f64; 3],
@@ -337,7 +340,7 @@ impl Slabs {
             inv: d.recip().to_array(),
             neg: [d.x < 0.0, d.y < 0.0, d.z < 0.0],
             flat: [d.x == 0.0, d.y == 0.0, d.z == 0.0],
-            tmin,
+            tmin: tmin.max(-f64::MAX),
         }
     }
 

@@ -243,10 +243,12 @@ impl HairBsdf {
         }
     }
 
-    /// The terms of `wo`: the kept ones if they are of `wo`.
+    /// The terms of `wo`: the kept ones if they are of `wo` to the bit (`-0.0` is not `0.0`
+    /// here: `atan2` tells them apart).
     fn terms(&self, wo: DVec3) -> Outgoing {
+        let bits = |v: DVec3| v.to_array().map(f64::to_bits);
         match self.kept {
-            Some((w, o)) if w == wo => o,
+            Some((w, o)) if bits(w) == bits(wo) => o,
             _ => self.outgoing(wo),
         }
     }
@@ -664,7 +666,7 @@ mod tests {
     }
 
     /// The BSDF with one direction's terms kept gives every value to the bit as without,
-    /// for that direction and for others.
+    /// for that direction, for it with a zero's sign flipped, and for others.
     #[test]
     fn kept_outgoing_terms_change_no_value() {
         let mut rng = SampleRng::from_seed(23);
@@ -672,9 +674,16 @@ mod tests {
             let sig = DVec3::new(rng.uniform(), rng.uniform(), 3.0 * rng.uniform());
             let prm = params(rng.range(0.1, 1.0), rng.range(0.1, 1.0), TILT, sig);
             let plain = HairBsdf::new(&prm, 2.0 * rng.uniform() - 1.0);
-            let kept_wo = uniform_sphere(rng.uniform2());
+            let mut kept_wo = uniform_sphere(rng.uniform2());
+            // A signed zero where `atan2` tells the signs apart (`y < 0`), queried with both.
+            let flipped = if kept_wo.y < 0.0 {
+                kept_wo.z = 0.0;
+                DVec3::new(kept_wo.x, kept_wo.y, -0.0)
+            } else {
+                kept_wo
+            };
             let kept = plain.for_outgoing(kept_wo);
-            for wo in [kept_wo, uniform_sphere(rng.uniform2())] {
+            for wo in [kept_wo, flipped, uniform_sphere(rng.uniform2())] {
                 let (wi, u) = (uniform_sphere(rng.uniform2()), u3(&mut rng));
                 assert_eq!(kept.eval_and_pdf(wo, wi), plain.eval_and_pdf(wo, wi));
                 assert_eq!(kept.azimuthal_terms(wo, wi), plain.azimuthal_terms(wo, wi));
