@@ -1071,8 +1071,6 @@ mod tests {
         );
     }
 
-    /// A planar S-curve bent slightly out of its plane: the Frenet frame turns by nearly half a
-    /// turn within a short stretch around the near-inflection at `u = 1/2`.
     /// A planar S curve with an exact inflection at `u = 1/2` (`a'' = 0` there by symmetry).
     fn s_curve() -> CubicBezier {
         CubicBezier::new([
@@ -1083,13 +1081,12 @@ mod tests {
         ])
     }
 
+    /// The S curve bent slightly out of its plane: the Frenet frame turns by nearly half a turn
+    /// within a short stretch around the near-inflection at `u = 1/2`.
     fn near_inflection() -> CubicBezier {
-        CubicBezier::new([
-            DVec3::new(0.0, 0.0, 0.0),
-            DVec3::new(1.0, 1.0, 0.0),
-            DVec3::new(2.0, -1.0, 0.02),
-            DVec3::new(3.0, 0.0, 0.0),
-        ])
+        let mut p = s_curve().points;
+        p[2].z = 0.02;
+        CubicBezier::new(p)
     }
 
     /// The frame from given `a'` and `a''` ([`frame_with`], the hit finish's) is [`frame_r`]'s to
