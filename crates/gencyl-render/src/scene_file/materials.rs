@@ -13,7 +13,7 @@ use super::values::*;
 use gencyl::{GeneralizedCylinder, Section};
 
 use crate::optics::material::exact::{ExactSection, SectionShape};
-use crate::optics::material::hair::HairParams;
+use crate::optics::material::hair::{HairMaterial, HairParams};
 use crate::optics::material::{Material, SceneMaterial};
 
 /// Name of the built-in material of fibers without a `material` key.
@@ -24,14 +24,14 @@ pub const SURFACE_MATERIAL: &str = "surface";
 /// The built-in materials: brown hair (Chiang et al., eumelanin 1.3) and grey diffuse.
 pub(super) fn builtin_material(name: &str) -> Option<Material> {
     match name {
-        FIBER_MATERIAL => Some(Material::Hair(HairParams::from_melanin(
+        FIBER_MATERIAL => Some(Material::Hair(HairMaterial::new(HairParams::from_melanin(
             1.55,
             1.3,
             0.0,
             0.3,
             0.3,
             2f64.to_radians(),
-        ))),
+        )))),
         SURFACE_MATERIAL => Some(Material::Diffuse {
             albedo: DVec3::splat(0.5),
         }),
@@ -189,14 +189,12 @@ pub(super) fn build_material(
             } else {
                 HairParams::from_melanin(eta, 1.3, 0.0, beta_m, beta_n, alpha)
             };
+            let hair = HairMaterial::new(params);
             match &m.section {
-                None => Material::Hair(params),
+                None => Material::Hair(hair),
                 Some(s) => match s.get_ref().as_str() {
-                    "circular" => Material::Hair(params),
-                    "exact" => Material::ExactHair {
-                        params,
-                        tables: None,
-                    },
+                    "circular" => Material::Hair(hair),
+                    "exact" => Material::ExactHair { hair, tables: None },
                     other => {
                         return Err((
                             s.span(),
@@ -301,7 +299,7 @@ pub(super) fn build_exact_tables(
 ) -> Result<(), Problem> {
     for (index, m) in materials.iter_mut().enumerate() {
         let Material::ExactHair {
-            params,
+            hair,
             ref mut tables,
         } = m.material
         else {
@@ -342,7 +340,7 @@ pub(super) fn build_exact_tables(
             shape = Some(this);
         }
         if let Some(shape) = shape {
-            let built = ExactSection::build(shape, lo, hi, &params)
+            let built = ExactSection::build(shape, lo, hi, &hair.params)
                 .map_err(|e| (span(&m.name), format!("{e} (material `{}`)", m.name)))?;
             *tables = Some(Arc::new(built));
         }

@@ -568,7 +568,7 @@ impl Tally {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optics::material::hair::{HairBsdf, HairParams};
+    use crate::optics::material::hair::{HairBsdf, HairMaterial, HairParams};
 
     fn circle() -> Goniometer {
         Goniometer {
@@ -855,7 +855,7 @@ mod tests {
                 let wi = DVec3::new(0.0, phi.cos(), phi.sin());
                 for i in 0..n {
                     let h = -1.0 + (2.0 * i as f64 + 1.0) / n as f64;
-                    let t = HairBsdf::new(&params, h).azimuthal_terms(wo, wi);
+                    let t = HairBsdf::new(&HairMaterial::new(params), h).azimuthal_terms(wo, wi);
                     for (cp, tp) in c.iter_mut().zip(t) {
                         *cp += tp.x;
                     }

@@ -37,7 +37,8 @@ use std::time::Instant;
 use glam::{DVec2, DVec3};
 
 use super::hair::{
-    HairParams, HairSample, Longitudinal, P_MAX, logistic_scale, pick_rescaled, trimmed_logistic,
+    HairMaterial, HairParams, HairSample, Longitudinal, P_MAX, logistic_scale, pick_rescaled,
+    trimmed_logistic,
 };
 use crate::transport::scatter::{FiberSection, Goniometer};
 
@@ -375,11 +376,16 @@ struct Outgoing<'a> {
 }
 
 impl<'a> ExactHairBsdf<'a> {
-    /// The BSDF of `params` (its `beta_m` and `alpha`; the tables hold the rest) for a section
+    /// The BSDF of `material` (its longitudinal lobes; the tables hold the rest) for a section
     /// of `aspect` whose major axis is `major` (local frame, any length across the tangent).
-    pub fn new(params: &HairParams, section: &'a ExactSection, aspect: f64, major: DVec3) -> Self {
+    pub fn new(
+        material: &HairMaterial,
+        section: &'a ExactSection,
+        aspect: f64,
+        major: DVec3,
+    ) -> Self {
         ExactHairBsdf {
-            lobes: Longitudinal::new(params.beta_m, params.alpha),
+            lobes: *material.lobes(),
             section,
             aspect,
             phi_major: major.z.atan2(major.y),
@@ -548,7 +554,7 @@ mod tests {
         for _ in 0..4 {
             let wo = uniform_sphere(rng.uniform2());
             let major = DVec3::new(0.0, rng.uniform() - 0.5, rng.uniform() - 0.5);
-            let b = ExactHairBsdf::new(&p, &s, 0.75, major);
+            let b = ExactHairBsdf::new(&HairMaterial::new(p), &s, 0.75, major);
             let xs: Vec<f64> = (0..400_000)
                 .map(|_| b.eval(wo, uniform_sphere(rng.uniform2())).x * 4.0 * PI)
                 .collect();
@@ -572,7 +578,7 @@ mod tests {
         for _ in 0..3 {
             let wo = uniform_sphere(rng.uniform2());
             let major = DVec3::new(0.0, rng.uniform() - 0.5, rng.uniform() - 0.5);
-            let b = ExactHairBsdf::new(&p, &s, 0.75, major);
+            let b = ExactHairBsdf::new(&HairMaterial::new(p), &s, 0.75, major);
             let sectors = 12;
             let mut count = vec![0usize; sectors];
             let n = 200_000;
@@ -615,7 +621,7 @@ mod tests {
     fn a_circle_scatters_as_chiangs_model_averaged_over_h() {
         let p = params(DVec3::new(0.2, 0.5, 1.0), 0.0);
         let s = section(1.0, &p);
-        let exact = ExactHairBsdf::new(&p, &s, 1.0, DVec3::Y);
+        let exact = ExactHairBsdf::new(&HairMaterial::new(p), &s, 1.0, DVec3::Y);
         for deg in [0.0f64, 30.0, 60.0] {
             let x = deg.to_radians().sin();
             let wo = dir(x, 0.3);
@@ -636,8 +642,8 @@ mod tests {
                         // edges, where the midpoint rule in h is off by 2e-3 of the R power.
                         let gamma = -FRAC_PI_2 + (i as f64 + 0.5) * PI / nh as f64;
                         let weight = 0.5 * gamma.cos() * PI / nh as f64 / 5.0;
-                        let t =
-                            HairBsdf::new(&p, gamma.sin()).azimuthal_terms(wo, dir(-x, 0.3 + f));
+                        let t = HairBsdf::new(&HairMaterial::new(p), gamma.sin())
+                            .azimuthal_terms(wo, dir(-x, 0.3 + f));
                         for q in 0..4 {
                             theirs[q] += t[q] * weight;
                         }
@@ -687,7 +693,7 @@ mod tests {
                 ..params(DVec3::new(0.1, 0.4, 0.9), 0.0)
             };
             let s = section(aspect, &p);
-            let bsdf = ExactHairBsdf::new(&p, &s, aspect, DVec3::Y); // major axis at azimuth 0
+            let bsdf = ExactHairBsdf::new(&HairMaterial::new(p), &s, aspect, DVec3::Y); // major axis at azimuth 0
             let width = |phi: f64| {
                 let beta = phi + FRAC_PI_2;
                 (beta.cos().powi(2) + aspect * aspect * beta.sin().powi(2)).sqrt()

@@ -128,7 +128,34 @@ impl HairParams {
     }
 }
 
-/// The BSDF at one hit: the parameters plus the azimuthal offset `h` in `[-1, 1]`.
+/// A hair material ready to shade: its parameters and what depends on them alone (the
+/// longitudinal lobes, the azimuthal logistic), made once per material rather than at every
+/// hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HairMaterial {
+    /// The parameters.
+    pub params: HairParams,
+    lobes: Longitudinal,
+    azimuth: Logistic,
+}
+
+impl HairMaterial {
+    /// The material of `params`.
+    pub fn new(params: HairParams) -> Self {
+        HairMaterial {
+            params,
+            lobes: Longitudinal::new(params.beta_m, params.alpha),
+            azimuth: Logistic::new(logistic_scale(params.beta_n)),
+        }
+    }
+
+    /// Its longitudinal lobes.
+    pub fn lobes(&self) -> &Longitudinal {
+        &self.lobes
+    }
+}
+
+/// The BSDF at one hit: the material plus the azimuthal offset `h` in `[-1, 1]`.
 #[derive(Clone, Copy, Debug)]
 pub struct HairBsdf {
     h: f64,
@@ -136,20 +163,21 @@ pub struct HairBsdf {
     eta: f64,
     sigma_a: DVec3,
     lobes: Longitudinal,
-    /// Logistic scale.
-    s: f64,
+    azimuth: Logistic,
     /// The terms of one outgoing direction, made once ([`HairBsdf::for_outgoing`]): a
     /// renderer asks for the same `wo` for its light sample and its BSDF sample.
     kept: Option<(DVec3, Outgoing)>,
 }
 
 /// Chiang et al.'s longitudinal lobes `M_p(θ_i; θ_o^p)`, shared by every hair model here.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Longitudinal {
     /// Longitudinal variance per lobe.
     v: [f64; P_MAX + 1],
     /// `ln(1 / (2 v sinh(1/v)))` per lobe.
     m_norm: [f64; P_MAX + 1],
+    /// `e^{−2/v}` per lobe (sampling).
+    e_2v: [f64; P_MAX + 1],
     /// `(sin, cos)` of the rotation of `θ_o` per lobe (cuticle tilt).
     tilt: [(f64, f64); P_MAX + 1],
 }
@@ -165,6 +193,7 @@ impl Longitudinal {
         Longitudinal {
             v,
             m_norm: v.map(longitudinal_norm),
+            e_2v: v.map(|v| (-2.0 / v).exp()),
             tilt: [-2.0 * alpha, alpha, 4.0 * alpha, 0.0].map(f64::sin_cos),
         }
     }
@@ -187,7 +216,7 @@ impl Longitudinal {
     pub fn sample(&self, p: usize, turned: (f64, f64), u: [f64; 2]) -> (f64, f64) {
         let v = self.v[p];
         let xi = 1.0 - u[0]; // (0, 1]
-        let one_minus_cos = (-v * (xi + (1.0 - xi) * (-2.0 / v).exp()).ln()).clamp(0.0, 2.0);
+        let one_minus_cos = (-v * (xi + (1.0 - xi) * self.e_2v[p]).ln()).clamp(0.0, 2.0);
         let cos_psi = 1.0 - one_minus_cos;
         let sin_psi = safe_sqrt(one_minus_cos * (2.0 - one_minus_cos));
         let (sp, cp) = turned;
@@ -220,16 +249,16 @@ struct Outgoing {
 }
 
 impl HairBsdf {
-    /// The BSDF of `params` at azimuthal offset `h` (clamped to `[-1, 1]`; NaN reads as 0).
-    pub fn new(params: &HairParams, h: f64) -> Self {
+    /// The BSDF of `material` at azimuthal offset `h` (clamped to `[-1, 1]`; NaN reads as 0).
+    pub fn new(material: &HairMaterial, h: f64) -> Self {
         let h = if h.is_nan() { 0.0 } else { h.clamp(-1.0, 1.0) };
         HairBsdf {
             h,
             gamma_o: h.asin(),
-            eta: params.eta,
-            sigma_a: params.sigma_a,
-            lobes: Longitudinal::new(params.beta_m, params.alpha),
-            s: logistic_scale(params.beta_n),
+            eta: material.params.eta,
+            sigma_a: material.params.sigma_a,
+            lobes: material.lobes,
+            azimuth: material.azimuth,
             kept: None,
         }
     }
@@ -280,7 +309,7 @@ impl HairBsdf {
 
         // φ_i: the lobe's azimuthal centre plus a trimmed logistic (uniform for p = 3).
         let dphi = if p < P_MAX {
-            self.phi_center(p, o.gamma_t) + sample_trimmed_logistic(uc, self.s)
+            self.phi_center(p, o.gamma_t) + self.azimuth.sample(uc)
         } else {
             TAU * uc
         };
@@ -360,7 +389,7 @@ impl HairBsdf {
         let phi = wi.z.atan2(wi.y) - o.phi_o;
         std::array::from_fn(|p| {
             let n = if p < P_MAX {
-                trimmed_logistic(phi - self.phi_center(p, o.gamma_t), self.s)
+                self.azimuth.density(phi - self.phi_center(p, o.gamma_t))
             } else {
                 1.0 / TAU
             };
@@ -377,7 +406,7 @@ impl HairBsdf {
         for p in 0..=P_MAX {
             let m = self.lobes.eval(p, sin_i, cos_i, o.rot[p]);
             let n = if p < P_MAX {
-                trimmed_logistic(phi - self.phi_center(p, o.gamma_t), self.s)
+                self.azimuth.density(phi - self.phi_center(p, o.gamma_t))
             } else {
                 1.0 / TAU
             };
@@ -488,17 +517,47 @@ fn longitudinal(cos_i: f64, cos_o: f64, sin_i: f64, sin_o: f64, v: f64, norm: f6
 
 /// The logistic of scale `s` trimmed to `[−π, π]`, at `x` wrapped into that range.
 pub fn trimmed_logistic(x: f64, s: f64) -> f64 {
-    let x = x - TAU * (x / TAU).round();
-    let e = (-x.abs() / s).exp();
-    e / (s * (1.0 + e) * (1.0 + e)) / (PI / (2.0 * s)).tanh()
+    Logistic::new(s).density(x)
 }
 
-/// Inverse CDF of [`trimmed_logistic`]: `x = s ln(u' / (1 − u'))`, `u'` spanning
-/// `[CDF(−π), CDF(π)]` with `CDF(x) = 1 / (1 + e^{−x/s})`.
-fn sample_trimmed_logistic(u: f64, s: f64) -> f64 {
-    let lo = 1.0 / (1.0 + (PI / s).exp());
-    let u = lo + u * (1.0 - 2.0 * lo);
-    (s * (u / (1.0 - u)).ln()).clamp(-PI, PI)
+/// The logistic `ℓ(x; s)` trimmed to `[−π, π]` and normalised there: the azimuthal lobe
+/// `N_p`. Its normalisation `tanh(π / 2s)` and the sampling bound `CDF(−π)` are made once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Logistic {
+    /// The scale `s`.
+    s: f64,
+    /// `tanh(π / 2s) = CDF(π) − CDF(−π)`.
+    mass: f64,
+    /// `CDF(−π) = 1 / (1 + e^{π/s})`, with `CDF(x) = 1 / (1 + e^{−x/s})`.
+    below: f64,
+}
+
+impl Logistic {
+    /// The trimmed logistic of scale `s > 0`.
+    pub fn new(s: f64) -> Self {
+        Logistic {
+            s,
+            mass: (PI / (2.0 * s)).tanh(),
+            below: 1.0 / (1.0 + (PI / s).exp()),
+        }
+    }
+
+    /// The density at `x` wrapped into `[−π, π]`:
+    /// `e^{−|x|/s} / (s (1 + e^{−|x|/s})²) / tanh(π / 2s)`.
+    pub fn density(&self, x: f64) -> f64 {
+        let s = self.s;
+        let x = x - TAU * (x / TAU).round();
+        let e = (-x.abs() / s).exp();
+        e / (s * (1.0 + e) * (1.0 + e)) / self.mass
+    }
+
+    /// Inverse CDF: `x = s ln(u' / (1 − u'))`, `u'` spanning `[CDF(−π), CDF(π)]` for `u` in
+    /// `[0, 1]`.
+    fn sample(&self, u: f64) -> f64 {
+        let lo = self.below;
+        let u = lo + u * (1.0 - 2.0 * lo);
+        (self.s * (u / (1.0 - u)).ln()).clamp(-PI, PI)
+    }
 }
 
 #[cfg(test)]
@@ -579,7 +638,7 @@ mod tests {
             let wo = uniform_sphere(rng.uniform2());
             let xs: Vec<f64> = (0..500_000)
                 .map(|_| {
-                    let bsdf = HairBsdf::new(&prm, 2.0 * rng.uniform() - 1.0);
+                    let bsdf = HairBsdf::new(&HairMaterial::new(prm), 2.0 * rng.uniform() - 1.0);
                     bsdf.eval(wo, uniform_sphere(rng.uniform2())).x * 4.0 * PI
                 })
                 .collect();
@@ -607,7 +666,7 @@ mod tests {
         ] {
             let prm = params(bm, bn, TILT, DVec3::ZERO);
             for _ in 0..20_000 {
-                let bsdf = HairBsdf::new(&prm, 2.0 * rng.uniform() - 1.0);
+                let bsdf = HairBsdf::new(&HairMaterial::new(prm), 2.0 * rng.uniform() - 1.0);
                 let s = bsdf
                     .sample(uniform_sphere(rng.uniform2()), u3(&mut rng))
                     .unwrap();
@@ -616,7 +675,10 @@ mod tests {
         }
         // Absorbing: the sampled albedo (mean weight) matches the uniform-sphere estimate of
         // ∫ eval within 4 combined standard errors, per channel.
-        let bsdf = HairBsdf::new(&params(0.35, 0.5, TILT, DVec3::new(0.2, 0.6, 1.5)), 0.3);
+        let bsdf = HairBsdf::new(
+            &HairMaterial::new(params(0.35, 0.5, TILT, DVec3::new(0.2, 0.6, 1.5))),
+            0.3,
+        );
         let wo = uniform_sphere(rng.uniform2());
         let n = 200_000;
         let (mut is, mut un) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
@@ -655,8 +717,8 @@ mod tests {
             let wo = uniform_sphere(rng.uniform2());
             let sign = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
             let wi = dir(sign * wo.x, TAU * rng.uniform());
-            let a = HairBsdf::new(&prm, h).eval(wo, wi);
-            let b = HairBsdf::new(&prm, -h).eval(wi, wo);
+            let a = HairBsdf::new(&HairMaterial::new(prm), h).eval(wo, wi);
+            let b = HairBsdf::new(&HairMaterial::new(prm), -h).eval(wi, wo);
             let rel = (a - b).abs().max_element() / a.max_element().max(1e-300);
             assert!(
                 rel < 1e-9,
@@ -673,7 +735,7 @@ mod tests {
         for _ in 0..2_000 {
             let sig = DVec3::new(rng.uniform(), rng.uniform(), 3.0 * rng.uniform());
             let prm = params(rng.range(0.1, 1.0), rng.range(0.1, 1.0), TILT, sig);
-            let plain = HairBsdf::new(&prm, 2.0 * rng.uniform() - 1.0);
+            let plain = HairBsdf::new(&HairMaterial::new(prm), 2.0 * rng.uniform() - 1.0);
             let mut kept_wo = uniform_sphere(rng.uniform2());
             // A signed zero where `atan2` tells the signs apart (`y < 0`), queried with both.
             let flipped = if kept_wo.y < 0.0 {
@@ -702,7 +764,10 @@ mod tests {
         let sig = DVec3::new(0.3, 0.8, 2.0);
         // (a) The sample's pdf and weight agree with pdf() and eval() at its wi.
         for _ in 0..20_000 {
-            let bsdf = HairBsdf::new(&params(0.3, 0.4, TILT, sig), 2.0 * rng.uniform() - 1.0);
+            let bsdf = HairBsdf::new(
+                &HairMaterial::new(params(0.3, 0.4, TILT, sig)),
+                2.0 * rng.uniform() - 1.0,
+            );
             let wo = uniform_sphere(rng.uniform2());
             let s = bsdf.sample(wo, u3(&mut rng)).unwrap();
             let pdf = bsdf.pdf(wo, s.wi);
@@ -714,7 +779,7 @@ mod tests {
             (0.3, 0.4, -0.6, dir(0.4, 1.0)),
             (0.6, 0.8, 0.9, dir(-0.8, -2.0)),
         ] {
-            let bsdf = HairBsdf::new(&params(bm, bn, TILT, sig), h);
+            let bsdf = HairBsdf::new(&HairMaterial::new(params(bm, bn, TILT, sig)), h);
             // (b) pdf integrates to 1: uniform-sphere MC, 4 standard errors.
             let xs: Vec<f64> = (0..300_000)
                 .map(|_| bsdf.pdf(wo, uniform_sphere(rng.uniform2())) * 4.0 * PI)
@@ -781,7 +846,7 @@ mod tests {
         // the 300 × 600 midpoint rule's error for these lobe widths is ~1e-6.
         let prm = params(0.25, 0.3, TILT, DVec3::splat(60.0));
         for (x, phi, h) in [(0.3, 0.5, 0.4), (-0.6, 2.0, -0.9), (0.05, -1.0, 0.7)] {
-            let (wo, bsdf) = (dir(x, phi), HairBsdf::new(&prm, h));
+            let (wo, bsdf) = (dir(x, phi), HairBsdf::new(&HairMaterial::new(prm), h));
             let albedo = cell_integral([-1.0, 1.0], [-PI, PI], 300, 600, |wi| bsdf.eval(wo, wi));
             let ti = (safe_sqrt(1.0 - x * x) * safe_sqrt(1.0 - h * h)).acos();
             let tt = (ti.sin() / 1.55).asin();
@@ -809,7 +874,7 @@ mod tests {
                 let n = DVec3::new(0.0, (PI / 2.0 + dn).cos(), (PI / 2.0 + dn).sin());
                 let h = azimuthal_offset(DVec3::X, n, wo);
                 assert!((h - (-dn).sin()).abs() < 1e-12, "h {h} for γ_o {}", -dn);
-                let bsdf = HairBsdf::new(&prm, h);
+                let bsdf = HairBsdf::new(&HairMaterial::new(prm), h);
                 let mirror = 2.0 * wo.dot(n) * n - wo;
                 let phi_r = mirror.z.atan2(mirror.y);
                 let lum = |w: DVec3| bsdf.eval(wo, w).element_sum();
@@ -869,7 +934,7 @@ mod tests {
             let phi_n = phi_o - gamma_o;
             let n3 = DVec3::new(0.0, phi_n.cos(), phi_n.sin());
             let prm = params(0.3, 0.3, TILT, DVec3::ZERO);
-            let bsdf = HairBsdf::new(&prm, azimuthal_offset(DVec3::X, n3, wo));
+            let bsdf = HairBsdf::new(&HairMaterial::new(prm), azimuthal_offset(DVec3::X, n3, wo));
             let gamma_t = bsdf.outgoing(wo).gamma_t;
             let eta_p = (1.55f64 * 1.55 - x * x).sqrt() / (1.0 - x * x).sqrt();
             for p in 0..3 {
@@ -958,7 +1023,7 @@ mod tests {
                 alpha: [0.0, TILT][k / 36 % 2],
             };
             let h = [-1.0, -0.999_999, 0.0, 0.5, 1.0][k / 72];
-            let bsdf = HairBsdf::new(&prm, h);
+            let bsdf = HairBsdf::new(&HairMaterial::new(prm), h);
             for x in xs {
                 let wo = dir(x, TAU * rng.uniform());
                 let wis = (0..10).map(|_| uniform_sphere(rng.uniform2()));
@@ -1021,7 +1086,7 @@ mod tests {
         let mut rng = SampleRng::from_seed(17);
         let mut albedo = DVec3::ZERO;
         for _ in 0..20_000 {
-            let bsdf = HairBsdf::new(&p, 2.0 * rng.uniform() - 1.0);
+            let bsdf = HairBsdf::new(&HairMaterial::new(p), 2.0 * rng.uniform() - 1.0);
             albedo += bsdf
                 .sample(uniform_sphere(rng.uniform2()), u3(&mut rng))
                 .unwrap()

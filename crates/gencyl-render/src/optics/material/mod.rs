@@ -16,7 +16,7 @@ use glam::DVec3;
 
 use crate::sampling::{basis, cosine_hemisphere, uniform_sphere};
 use exact::{ExactHairBsdf, ExactSection};
-use hair::{HairBsdf, HairParams, azimuthal_offset};
+use hair::{HairBsdf, HairMaterial, azimuthal_offset};
 
 /// A scattering model with its parameters.
 #[derive(Clone, Debug, PartialEq)]
@@ -38,13 +38,13 @@ pub enum Material {
         exponent: f64,
     },
     /// The hair BSDF of Chiang et al. 2016 ([`hair`]).
-    Hair(HairParams),
+    Hair(HairMaterial),
     /// Hair whose azimuthal scattering is traced on its exact section ([`exact`]):
     /// `section = "exact"`.
     ExactHair {
         /// `eta`, `sigma_a` (per unit of the section's bounding radius), `beta_m`, `beta_n`,
         /// `alpha` as for [`Material::Hair`].
-        params: HairParams,
+        hair: HairMaterial,
         /// The tables, built when the scene is loaded over the sections of the fibers that use
         /// the material (`None` when none does: then it shades as [`Material::Hair`]).
         tables: Option<Arc<ExactSection>>,
@@ -90,8 +90,9 @@ impl Material {
                     ))
                 }
             }
-            Material::Hair(p) => p.validate(),
-            Material::ExactHair { params, .. } => {
+            Material::Hair(h) => h.params.validate(),
+            Material::ExactHair { hair, .. } => {
+                let params = hair.params;
                 params.validate()?;
                 if params.eta > 1.0 && params.eta <= 10.0 {
                     Ok(())
@@ -306,7 +307,7 @@ impl<'a> Bsdf<'a> {
                     n: facing,
                 },
             },
-            Material::Hair(params) | Material::ExactHair { params, .. } => match at.tangent {
+            Material::Hair(ref hair) | Material::ExactHair { ref hair, .. } => match at.tangent {
                 Some(t) => {
                     let frame = hair_frame(t, at.normal);
                     let model = match (material, at.section) {
@@ -317,13 +318,13 @@ impl<'a> Bsdf<'a> {
                             },
                             Some(s),
                         ) => HairModel::Exact(ExactHairBsdf::new(
-                            &params,
+                            hair,
                             tables,
                             s.aspect,
                             Self::to_local(&frame, s.major),
                         )),
                         _ => HairModel::Chiang(
-                            HairBsdf::new(&params, azimuthal_offset(frame[0], at.normal, wo))
+                            HairBsdf::new(hair, azimuthal_offset(frame[0], at.normal, wo))
                                 .for_outgoing(Self::to_local(&frame, wo)),
                         ),
                     };
