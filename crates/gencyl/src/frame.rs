@@ -406,6 +406,7 @@ fn isolated_switches(axis: &CubicBezier, lo: f64, hi: f64) -> ArrayVec<f64, 8> {
         min_width: 1e-15,
         tangent_tolerance: 0.0,
         max_evaluations: 400,
+        u_shaped: false,
     };
     let mut roots = ArrayVec::new();
     isolate_roots(&f, lo, hi, &opts, &mut roots);

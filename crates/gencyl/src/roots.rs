@@ -59,6 +59,11 @@ pub struct IsolateOptions {
     pub tangent_tolerance: f64,
     /// Safety cap on enclosure evaluations per call.
     pub max_evaluations: usize,
+    /// Whether `f` is typically U-shaped on the interval (positive at both ends, negative in
+    /// the middle: a ray through a fiber). Then a negative value at the midpoint splits the
+    /// interval at once about the parabola through the ends and the midpoint, without an
+    /// enclosure of the whole interval.
+    pub u_shaped: bool,
 }
 
 impl Default for IsolateOptions {
@@ -67,6 +72,7 @@ impl Default for IsolateOptions {
             min_width: 1e-10,
             tangent_tolerance: 1e-9,
             max_evaluations: 4000,
+            u_shaped: false,
         }
     }
 }
@@ -85,7 +91,8 @@ impl Default for IsolateOptions {
 /// test decides usually holds a critical point of `f` (the minimum between the two hits of a
 /// ray, say): it is cut at the zero `-c1/s1` of the linear model of `f'` into two sides that are
 /// then monotone and a narrow middle where `f` keeps one sign, three cells where halving would
-/// take five to seven. Otherwise it is halved.
+/// take five to seven. Otherwise it is halved. With [`IsolateOptions::u_shaped`] the first
+/// cells may come from point values instead ([`u_shaped_cells`]).
 ///
 /// Returns whether the evaluation budget sufficed.
 pub fn isolate_roots<F: Function1D>(
@@ -102,7 +109,18 @@ pub fn isolate_roots<F: Function1D>(
     let point = |u: f64| f.eval(u);
     // Cells (a, b, f(a), f(b)), processed left to right so roots come out ascending.
     let mut stack: ArrayVec<(f64, f64, f64, f64), 256> = ArrayVec::new();
-    stack.push((lo, hi, point(lo), point(hi)));
+    let (flo, fhi) = (point(lo), point(hi));
+    if opts.u_shaped {
+        // Pushed last first, so that the cells are taken left to right.
+        for cell in u_shaped_cells(&point, (lo, hi), (flo, fhi))
+            .into_iter()
+            .rev()
+        {
+            stack.push(cell);
+        }
+    } else {
+        stack.push((lo, hi, flo, fhi));
+    }
     let mut evaluations = 0;
     let mut complete = true;
     while let Some((a, b, fa, fb)) = stack.pop() {
@@ -170,6 +188,62 @@ pub fn isolate_roots<F: Function1D>(
     // Roots from the budget fallback can come out of order.
     out.sort_by(f64::total_cmp);
     complete
+}
+
+/// The first cells `(a, b, f(a), f(b))` of [`isolate_roots`] on `[lo, hi]` for a function
+/// that is typically U-shaped there ([`IsolateOptions::u_shaped`]): where `f` is positive at
+/// both ends and negative at the midpoint `m`, the parabola through the three values
+/// (`f ~ f(m) + c1 (u - m) + c2 (u - m)^2`, `c2 = (f(lo) - 2 f(m) + f(hi)) / 2h^2`,
+/// `c1 = (f(hi) - f(lo)) / 2h`, `h = (hi - lo) / 2`) has zeros `r1 < m < r2` near the two
+/// roots, and the interval is cut at `p = (r1 + m) / 2` and `q = (m + r2) / 2` where `f` is
+/// still negative there (else at `m`): two sides that hold one root each and are usually
+/// monotone, and a middle where `f` keeps its sign, decided by one enclosure each instead of
+/// first enclosing the whole interval to find that split. Only cut points where `f < 0`, so
+/// never at a root; otherwise the whole interval, as for any function.
+fn u_shaped_cells(
+    point: &impl Fn(f64) -> f64,
+    (lo, hi): (f64, f64),
+    (flo, fhi): (f64, f64),
+) -> ArrayVec<(f64, f64, f64, f64), 3> {
+    let mut cells = ArrayVec::new();
+    let m = 0.5 * (lo + hi);
+    let fm = if flo > 0.0 && fhi > 0.0 && lo < m && m < hi {
+        point(m)
+    } else {
+        f64::NAN
+    };
+    if !(fm < 0.0) {
+        cells.push((lo, hi, flo, fhi));
+        return cells;
+    }
+    let h = 0.5 * (hi - lo);
+    let (c2, c1) = (
+        (flo - 2.0 * fm + fhi) / (2.0 * h * h),
+        (fhi - flo) / (2.0 * h),
+    );
+    // c2 > 0 and c1^2 - 4 c2 f(m) > 0 as f(m) < 0 < f(lo), f(hi); rounding aside.
+    let root = (c1 * c1 - 4.0 * c2 * fm).sqrt();
+    let (r1, r2) = if c2 > 0.0 && root.is_finite() {
+        (m + (-c1 - root) / (2.0 * c2), m + (-c1 + root) / (2.0 * c2))
+    } else {
+        (lo, hi)
+    };
+    let cut = |r: f64| {
+        let x = 0.5 * (r + m);
+        let fx = point(x);
+        if fx < 0.0 && lo < x && x < hi {
+            (x, fx)
+        } else {
+            (m, fm)
+        }
+    };
+    let ((p, fp), (q, fq)) = (cut(r1.clamp(lo, m)), cut(r2.clamp(m, hi)));
+    cells.push((lo, p, flo, fp));
+    if p < q {
+        cells.push((p, q, fp, fq));
+    }
+    cells.push((q, hi, fq, fhi));
+    cells
 }
 
 /// A smooth map of the plane with enclosures over boxes, for [`isolate_roots_2d`].
@@ -717,6 +791,86 @@ mod tests {
                 .iter()
                 .fold(wobble, |acc, &r| acc * (u - T::cst(r)))
         }
+    }
+
+    /// With [`IsolateOptions::u_shaped`] the isolator finds the same roots as without, to
+    /// full precision: functions positive at both ends with two or four roots (a U, a W, roots
+    /// on one side of the middle, at it, 1e-6 apart, within 1e-9 of the ends or of the middle,
+    /// far from where the parabola through the ends and the middle puts them), a double root,
+    /// none; and for the U-shaped ones the first cells are the three the parabola cuts.
+    #[test]
+    fn u_shaped_cells_find_the_same_roots() {
+        let mut seed = 47u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut split = 0;
+        for case in 0..2000 {
+            let mut roots: Vec<f64> = match case % 8 {
+                0 => vec![0.5 - 0.5 * rnd(), 0.5 + 0.5 * rnd()],
+                1 => vec![1e-9 + 1e-3 * rnd(), 1.0 - 1e-9 - 1e-3 * rnd()],
+                2 => vec![0.5 - 1e-9 * (1.0 + rnd()), 0.5 + 1e-9 * (1.0 + rnd())],
+                3 => (0..4).map(|_| rnd()).collect(),
+                4 => vec![0.05 + 0.4 * rnd(), 0.45 + 0.04 * rnd()],
+                5 => {
+                    let r = 0.1 + 0.8 * rnd();
+                    vec![r, r + 1e-6]
+                }
+                6 => vec![0.5, 0.3 * rnd() + 0.6],
+                _ => vec![rnd(), rnd(), 0.5 * rnd(), 0.5 + 0.5 * rnd()],
+            };
+            roots.sort_by(f64::total_cmp);
+            let f = Product { roots };
+            let plain = IsolateOptions::default();
+            let shaped = IsolateOptions {
+                u_shaped: true,
+                ..plain
+            };
+            let (mut a, mut b) = (ArrayVec::new(), ArrayVec::new());
+            assert!(isolate_roots(&f, 0.0, 1.0, &plain, &mut a), "budget");
+            assert!(isolate_roots(&f, 0.0, 1.0, &shaped, &mut b), "budget");
+            assert_eq!(a.len(), f.roots.len(), "case {case}: {:?}: {a:?}", f.roots);
+            assert_eq!(b.len(), f.roots.len(), "case {case}: {:?}: {b:?}", f.roots);
+            for ((x, y), r) in a.iter().zip(&b).zip(&f.roots) {
+                assert!(
+                    (x - r).abs() < 1e-13 && (y - r).abs() < 1e-13,
+                    "case {case}: {x} {y} {r}"
+                );
+            }
+            let point = |u: f64| f.eval(u);
+            let cells = u_shaped_cells(&point, (0.0, 1.0), (point(0.0), point(1.0)));
+            if point(0.5) < 0.0 {
+                split += 1;
+                assert!(cells.len() >= 2, "case {case}: cut at the middle at least");
+            }
+            // The cells cover [0, 1] in order, and their cut points are no roots.
+            assert_eq!((cells[0].0, cells[cells.len() - 1].1), (0.0, 1.0));
+            for w in cells.windows(2) {
+                assert!(
+                    w[0].1 == w[1].0 && w[0].3 == w[1].2 && w[0].3 < 0.0,
+                    "{cells:?}"
+                );
+            }
+        }
+        assert!(split > 900, "most cases are U-shaped: {split}");
+        let tangent = |u: f64| Tangent.eval(u);
+        for f in [&tangent as &dyn Fn(f64) -> f64, &|u: f64| 1.0 + u * u] {
+            let cells = u_shaped_cells(&f, (0.0, 1.0), (f(0.0), f(1.0)));
+            assert_eq!(cells.len(), 1, "no negative middle, no cut");
+        }
+        let mut out = ArrayVec::new();
+        let shaped = IsolateOptions {
+            u_shaped: true,
+            ..IsolateOptions::default()
+        };
+        isolate_roots(&Tangent, 0.0, 1.0, &shaped, &mut out);
+        assert!(
+            out.len() == 1 && (out[0] - 0.3).abs() < 1e-9,
+            "double root {out:?}"
+        );
     }
 
     /// The Taylor-model isolator and the interval reference find the same roots, to full

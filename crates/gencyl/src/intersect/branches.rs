@@ -120,6 +120,7 @@ impl<'a, C: CrossSection, S: SweepRule> Quadric<'a, C, S> {
             min_width: 1e-15,
             tangent_tolerance: 0.0,
             max_evaluations: 600,
+            u_shaped: false,
         };
         let mut ends: ArrayVec<f64, { MAX_ROOTS + 2 }> = ArrayVec::new();
         ends.push(lo);

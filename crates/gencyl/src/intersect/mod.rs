@@ -143,11 +143,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 
     /// Root-isolation settings for [`Radial`]: `g = q^2 (|phi|^2 - R^2)`, so a tangential root is
     /// accepted where `|g| <= 1e-9 q_scale^2 R^2` (the ray passes within about `5e-10` of the
-    /// section size of the surface).
+    /// section size of the surface). `g` is U-shaped on most ranges (positive where the
+    /// prefilter's range begins and ends, negative where the ray is inside the fiber), which
+    /// [`IsolateOptions::u_shaped`] splits without enclosing the whole range first.
     fn radial_options(&self, d: DVec3, radius: f64) -> IsolateOptions {
         let qs = self.q_scale(d) * radius;
         IsolateOptions {
             tangent_tolerance: 1e-9 * qs * qs,
+            u_shaped: true,
             ..Default::default()
         }
     }
