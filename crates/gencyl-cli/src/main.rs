@@ -367,11 +367,16 @@ struct BenchArgs {
     /// The `ponytail` scene (the TressFX ponytail over a scalp).
     #[arg(long, default_value = "examples/ponytail.toml")]
     ponytail: PathBuf,
+    /// The `ponytail-elliptical` scene (the same strands with elliptical sections, timed on the
+    /// same rays).
+    #[arg(long, default_value = "examples/ponytail-elliptical.toml")]
+    ponytail_elliptical: PathBuf,
     /// Camera rays per scene (a 4:3 image of about this many pixels, one ray each; at most
     /// 2^26, whose rays take 3 GiB).
     #[arg(long, default_value_t = 76_800, value_parser = clap::value_parser!(u32).range(1..=1 << 26))]
     rays: u32,
-    /// Only this scene (`default`, `ponytail`, `generated-1.6M`; repeatable).
+    /// Only this scene (`default`, `ponytail`, `ponytail-elliptical`, `generated-1.6M`;
+    /// repeatable).
     #[arg(long = "scene")]
     scenes: Vec<String>,
     /// Only this ray set (`camera` or `incoherent`; repeatable).
@@ -1339,8 +1344,17 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     }
     let wanted = |list: &[String], name: &str| list.is_empty() || list.iter().any(|s| s == name);
     for s in &args.scenes {
-        if !["default", "ponytail", "generated-1.6M"].contains(&s.as_str()) {
-            bail!("--scene {s}: the scenes are default, ponytail and generated-1.6M");
+        if ![
+            "default",
+            "ponytail",
+            "ponytail-elliptical",
+            "generated-1.6M",
+        ]
+        .contains(&s.as_str())
+        {
+            bail!(
+                "--scene {s}: the scenes are default, ponytail, ponytail-elliptical and generated-1.6M"
+            );
         }
         if s == "generated-1.6M" && !args.large {
             bail!("--scene generated-1.6M needs --large");
@@ -1363,6 +1377,10 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         (
             "ponytail",
             Box::new(|| Ok(SceneDescription::load(&args.ponytail)?)),
+        ),
+        (
+            "ponytail-elliptical",
+            Box::new(|| Ok(SceneDescription::load(&args.ponytail_elliptical)?)),
         ),
     ];
     if args.large {

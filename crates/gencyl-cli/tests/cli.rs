@@ -613,14 +613,34 @@ fn crop_merge_generate_and_their_errors() {
     assert!(!nothing.exists(), "no image after an error");
 }
 
-/// `bench` prints one CSV row per scene and thread count, with positive rates.
+/// The example scenes `bench` times by default, as arguments naming them from the test's
+/// folder.
+fn bench_scenes() -> [String; 4] {
+    let example = |f: &str| {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples")
+            .join(f)
+            .to_str()
+            .unwrap()
+            .to_string()
+    };
+    [
+        "--ponytail".into(),
+        example("ponytail.toml"),
+        "--ponytail-elliptical".into(),
+        example("ponytail-elliptical.toml"),
+    ]
+}
+
+/// `bench` prints one CSV row per scene and thread count, with positive rates. The elliptical
+/// ponytail is timed on the round one's rays: its sections lie inside the round ones, so it
+/// has no more hits.
 #[test]
 fn bench_reports_named_scenes() {
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/ponytail.toml");
-    let out = ok(
-        &["bench", "--rays", "300", "--ponytail", path(&scene)],
-        None,
-    );
+    let scenes = bench_scenes();
+    let mut args = vec!["bench", "--rays", "300"];
+    args.extend(scenes.iter().map(String::as_str));
+    let out = ok(&args, None);
     let rows: Vec<Vec<&str>> = out
         .lines()
         .skip(1)
@@ -644,6 +664,21 @@ fn bench_reports_named_scenes() {
         rows.iter().any(|r| r[0] == "ponytail" && r[1] == "73995"),
         "{out}"
     );
+    for kind in ["camera", "incoherent"] {
+        let hits = |scene: &str| -> f64 {
+            let r = rows
+                .iter()
+                .find(|r| r[0] == scene && r[6] == kind)
+                .unwrap_or_else(|| panic!("{scene} {kind}: {out}"));
+            assert_eq!(r[1], "73995", "{r:?}");
+            r[10].parse().unwrap()
+        };
+        let (round, elliptical) = (hits("ponytail"), hits("ponytail-elliptical"));
+        assert!(
+            elliptical <= round && elliptical > 0.5 * round,
+            "{kind}: hit fractions {elliptical} (elliptical) against {round}: {out}"
+        );
+    }
 }
 
 /// `bench --scene --kind --threads` keeps only the rows asked for; an unknown scene is refused.
@@ -1211,9 +1246,9 @@ fn export_writes_the_same_geometry() {
 #[test]
 fn bench_output_cut_short_is_not_a_crash() {
     use std::io::{BufRead, BufReader};
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/ponytail.toml");
     let mut child = Command::new(env!("CARGO_BIN_EXE_gencyl"))
-        .args(["bench", "--rays", "300", "--ponytail", path(&scene)])
+        .args(["bench", "--rays", "300"])
+        .args(bench_scenes())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
