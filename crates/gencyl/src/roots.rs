@@ -793,6 +793,18 @@ mod tests {
         }
     }
 
+    /// Both lists are `roots`, each root to 1e-13.
+    fn assert_both_find(a: &[f64], b: &[f64], roots: &[f64], case: usize) {
+        assert_eq!(a.len(), roots.len(), "case {case}: {roots:?}: {a:?}");
+        assert_eq!(b.len(), roots.len(), "case {case}: {roots:?}: {b:?}");
+        for ((x, y), r) in a.iter().zip(b).zip(roots) {
+            assert!(
+                (x - r).abs() < 1e-13 && (y - r).abs() < 1e-13,
+                "case {case}: {x} {y} {r}"
+            );
+        }
+    }
+
     /// A function that counts its enclosures (evaluations over intervals).
     struct Counted<'a, F> {
         f: &'a F,
@@ -817,13 +829,8 @@ mod tests {
     /// keeps some sides from being monotone at once).
     #[test]
     fn u_shaped_cells_find_the_same_roots() {
-        let mut seed = 47u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::test_rng::Lcg(47);
+        let mut rnd = || rng.next();
         let (mut split, mut enclosures) = (0, [0, 0]);
         for case in 0..2000 {
             let mut roots: Vec<f64> = match case % 8 {
@@ -860,14 +867,7 @@ mod tests {
                 enclosures[0] += without;
                 enclosures[1] += with;
             }
-            assert_eq!(a.len(), f.roots.len(), "case {case}: {:?}: {a:?}", f.roots);
-            assert_eq!(b.len(), f.roots.len(), "case {case}: {:?}: {b:?}", f.roots);
-            for ((x, y), r) in a.iter().zip(&b).zip(&f.roots) {
-                assert!(
-                    (x - r).abs() < 1e-13 && (y - r).abs() < 1e-13,
-                    "case {case}: {x} {y} {r}"
-                );
-            }
+            assert_both_find(&a, &b, &f.roots, case);
             let point = |u: f64| f.eval(u);
             let cells = u_shaped_cells(&point, (0.0, 1.0), (point(0.0), point(1.0)));
             if point(0.5) < 0.0 {
@@ -911,13 +911,8 @@ mod tests {
     /// precision: up to six simple roots, some pairs only 1e-6 apart.
     #[test]
     fn isolate_matches_the_reference() {
-        let mut seed = 31u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::test_rng::Lcg(31);
+        let mut rnd = || rng.next();
         for case in 0..300 {
             let n = 1 + case % 6;
             let mut roots: Vec<f64> = (0..n).map(|_| 0.02 + 0.96 * rnd()).collect();
@@ -931,14 +926,7 @@ mod tests {
             let opts = IsolateOptions::default();
             assert!(isolate_roots(&f, 0.0, 1.0, &opts, &mut fast), "budget");
             assert!(isolate_roots_reference(&f, 0.0, 1.0, &opts, &mut reference));
-            assert_eq!(fast.len(), f.roots.len(), "{:?}: {fast:?}", f.roots);
-            assert_eq!(reference.len(), f.roots.len(), "{:?}", f.roots);
-            for ((x, y), r) in fast.iter().zip(&reference).zip(&f.roots) {
-                assert!(
-                    (x - r).abs() < 1e-13 && (y - r).abs() < 1e-13,
-                    "{x} {y} {r}"
-                );
-            }
+            assert_both_find(&fast, &reference, &f.roots, case);
         }
     }
 }
