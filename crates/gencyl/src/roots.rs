@@ -40,9 +40,10 @@ pub const MAX_ROOTS: usize = 16;
 /// A smooth real function of one variable that can also be enclosed over an interval.
 ///
 /// `eval` is written once over [`Real`]; [`isolate_roots`] calls it with `f64` and `Dual<f64>`
-/// for values and slopes, and with `Dual<Taylor>` for enclosures of the function and its
-/// derivative over a subinterval ([`isolate_roots_reference`]: second-order duals of
-/// [`Interval`]s).
+/// for values and slopes, with `Dual<Taylor>` for enclosures of the function and its
+/// derivative over a subinterval, and with `Taylor` for the function's alone (which must be the
+/// value part of the pair: `eval` may not tell the two types apart)
+/// ([`isolate_roots_reference`]: second-order duals of [`Interval`]s).
 pub trait Function1D {
     /// `f(u)` over any scalar.
     fn eval<T: Real>(&self, u: T) -> T;
@@ -57,7 +58,7 @@ pub struct IsolateOptions {
     pub min_width: f64,
     /// See `min_width`.
     pub tangent_tolerance: f64,
-    /// Safety cap on enclosure evaluations per call.
+    /// Safety cap on the cells examined per call (each takes one or two enclosures).
     pub max_evaluations: usize,
     /// Whether `f` is typically U-shaped on the interval (positive at both ends, negative in
     /// the middle: a ray through a fiber). Then a negative value at the midpoint splits the
@@ -93,7 +94,10 @@ impl Default for IsolateOptions {
 /// then monotone and a narrow middle where `f` keeps one sign, three cells where halving would
 /// take five to seven. Otherwise it is halved. With [`IsolateOptions::u_shaped`] the first
 /// cells may come from point values instead (`u_shaped_cells`), and Newton's method then
-/// starts in a monotone cell from the parabola's estimate of its root where it has one.
+/// starts in a monotone cell from the parabola's estimate of its root where it has one. A cell
+/// with one sign at both ends is first enclosed by the model of `f` alone (a third of the
+/// work), which is the pair's value part to the bit: where it excludes zero the cell is done,
+/// as the pair would have decided.
 ///
 /// Returns whether the evaluation budget sufficed.
 pub fn isolate_roots<F: Function1D>(
@@ -825,8 +829,9 @@ mod tests {
     }
 
     /// A function that counts its enclosures (evaluations over intervals): of itself and its
-    /// derivative together (`Dual<Taylor>`, one a cell the isolator examines), and of itself
-    /// alone (`Taylor`).
+    /// derivative together (`Dual<Taylor>`: one a cell the isolator examines, but for the cells
+    /// that its value's enclosure alone rules out), and of itself alone (`Taylor`). (The types
+    /// are told apart by name: `Real` has no `'static` bound for `TypeId`.)
     struct Counted<'a, F> {
         f: &'a F,
         enclosures: std::cell::Cell<usize>,
@@ -912,8 +917,8 @@ mod tests {
     /// far from where the parabola through the ends and the middle puts them), a double root,
     /// none. Where the middle is negative the interval is cut there at least, the cells tile
     /// it at negative values, and on the plain U (one root on each side of the middle) the
-    /// isolation takes fewer enclosures than without the cells (here 10% fewer: the wobble
-    /// keeps some sides from being monotone at once).
+    /// isolation takes fewer enclosures of `f` with `f'` than without the cells (here 10%
+    /// fewer: the wobble keeps some sides from being monotone at once).
     #[test]
     fn u_shaped_cells_find_the_same_roots() {
         let mut rng = crate::test_rng::Lcg(47);

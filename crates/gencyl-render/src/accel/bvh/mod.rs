@@ -885,8 +885,6 @@ mod tests {
     /// interior node is reached twice, and the binary depth bound covers the walk.
     fn check_structure(bvh: &Bvh, boxes: &[Aabb]) {
         let mut seen = vec![0u32; boxes.len()];
-        // The key array holds the runs of the leaves of two or more, each once.
-        let mut runs = vec![0u32; bvh.indices.len()];
         let mut visited = vec![false; bvh.nodes.len()];
         let c = bvh.center;
         // (slot, its box relative to the centre, wide depth)
@@ -898,12 +896,6 @@ mod tests {
         while let Some((slot, bx, depth)) = todo.pop() {
             assert!(depth <= bvh.depth, "wide depth {depth} past {}", bvh.depth);
             if slot.count > 0 {
-                if slot.count > 1 {
-                    let s = slot.offset as usize;
-                    runs[s..s + slot.count as usize]
-                        .iter_mut()
-                        .for_each(|r| *r += 1);
-                }
                 for &p in bvh.leaf_keys(&slot) {
                     seen[p as usize] += 1;
                     if let Some((lo, hi)) = bx {
@@ -948,10 +940,17 @@ mod tests {
             "a primitive is not in exactly one leaf"
         );
         assert!(visited.iter().all(|&v| v), "an unreachable node");
-        assert!(
-            runs.iter().all(|&k| k == 1),
-            "a key array entry not in exactly one leaf's run"
-        );
+        // The key array is the runs of the leaves of two or more, each once, in order: the
+        // root's, then the nodes' slots', node by node.
+        let mut next = 0;
+        let root = bvh.root.expect("not empty");
+        for c in std::iter::once(&root).chain(bvh.nodes.iter().flat_map(|n| &n.child)) {
+            if c.count > 1 && c.count != u32::MAX {
+                assert_eq!(c.offset as usize, next, "a leaf's run out of order");
+                next += c.count as usize;
+            }
+        }
+        assert_eq!(next, bvh.indices.len(), "keys outside the leaves' runs");
     }
 
     /// The boxes of random fibers' control points, grown by their radii.
