@@ -890,6 +890,11 @@ mod tests {
                 out.is_empty(),
                 "case {case}: no root in [0, 1], got {out:?}"
             );
+            // Every cell has one sign at its ends here: no pair without a value model first.
+            assert!(
+                counted.enclosures.get() <= counted.values.get(),
+                "case {case}"
+            );
             values += counted.values.get();
             pairs += counted.enclosures.get();
         }

@@ -88,7 +88,7 @@ fn halves<T: Copy + Add<Output = T> + Mul<f64, Output = T>>(q: &[T; 4]) -> [[T; 
 /// piece lies within this distance of the axis curve there, the rule's largest stretch on the
 /// piece times the section's `bounding_radius` (the surface point is `a(u)` plus an offset of
 /// at most that length in the normal plane; caps are sections too). The rule's stretch is
-/// bounded by a linear function of `u` ([`SweepRule::scale_bound`]), so its larger end value
+/// bounded by a linear function of `u` ([`gencyl::SweepRule::scale_bound`]), so its larger end value
 /// on the piece bounds it there.
 pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
     piece_reach(c.reach_ends(), piece)

@@ -29,7 +29,7 @@ use std::io::BufWriter;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Runs `encode` into a fresh temp file beside `path`, ".<name>.<pid>-<n>.tmp", then renames it
+/// Runs `encode` into a fresh temp file beside `path`, `.<name>.<pid>-<n>.tmp`, then renames it
 /// over `path`: the file is complete or absent, never half-written. The temp file is removed on
 /// any failure; `io` turns an I/O error into the caller's error.
 pub fn write_atomic<E>(

@@ -60,7 +60,7 @@ pub(super) fn up(x: f64) -> f32 {
 /// a code: its cluster's Morton code ([`cluster_bits`]; 0 until the clusters are formed),
 /// then, while its cluster's tree is built, its bin on the axis last binned ([`bin_axis`]).
 /// 44 bytes; all zeros is a valid placeholder, so a large array of them is fresh memory that
-/// the threads filling it touch first ([`bytemuck::zeroed_vec`]).
+/// the threads filling it touch first ([`bytemuck::allocation::try_zeroed_vec`]).
 #[derive(Clone, Copy, Debug, Zeroable)]
 #[repr(C)]
 struct Prim {
