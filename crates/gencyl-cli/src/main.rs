@@ -1343,18 +1343,15 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         .map_err(anyhow::Error::msg)?;
     }
     let wanted = |list: &[String], name: &str| list.is_empty() || list.iter().any(|s| s == name);
+    const SCENES: [&str; 4] = [
+        "default",
+        "ponytail",
+        "ponytail-elliptical",
+        "generated-1.6M",
+    ];
     for s in &args.scenes {
-        if ![
-            "default",
-            "ponytail",
-            "ponytail-elliptical",
-            "generated-1.6M",
-        ]
-        .contains(&s.as_str())
-        {
-            bail!(
-                "--scene {s}: the scenes are default, ponytail, ponytail-elliptical and generated-1.6M"
-            );
+        if !SCENES.contains(&s.as_str()) {
+            bail!("--scene {s}: the scenes are {}", SCENES.join(", "));
         }
         if s == "generated-1.6M" && !args.large {
             bail!("--scene generated-1.6M needs --large");
