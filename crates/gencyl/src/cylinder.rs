@@ -752,7 +752,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     ///
     /// For enclosure types they are the Taylor polynomials about `m = u.value()` in
     /// `t = u - m` (exact: the axis is a cubic), with coefficients enclosed at the point `m`
-    /// ([`Real::cubic_at`]; by [`CubicBezier::jet_enclosure`]'s rounding bound, or interval
+    /// ([`Real::cubic_jet`]; by [`CubicBezier::jet_enclosure`]'s rounding bound, or interval
     /// arithmetic outside its range; the hodographs' control points are taken as exact, as
     /// everywhere). All dependence on `u` then goes through the one small
     /// quantity `t in [-h, h]`, and the enclosures are about as wide as the quantities vary
@@ -779,18 +779,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         });
         let k0 = k0 - V3::cst(p);
         let k3 = V3::<Interval>::cst(self.axis.third_derivative());
-        let zero = Interval::cst(0.0);
-        let six = Interval::cst(6.0);
-        let coord = |k0: Interval, k1: Interval, k2: Interval, k3: Interval| {
-            [
-                u.cubic_at(m, [k0, k1, k2.scale(0.5), k3 / six]),
-                u.cubic_at(m, [k1, k2, k3.scale(0.5), zero]),
-                u.cubic_at(m, [k2, k3, zero, zero]),
-            ]
-        };
-        let [x0, x1, x2] = coord(k0.x, k1.x, k2.x, k3.x);
-        let [y0, y1, y2] = coord(k0.y, k1.y, k2.y, k3.y);
-        let [z0, z1, z2] = coord(k0.z, k1.z, k2.z, k3.z);
+        let [x0, x1, x2] = u.cubic_jet(m, [k0.x, k1.x, k2.x, k3.x]);
+        let [y0, y1, y2] = u.cubic_jet(m, [k0.y, k1.y, k2.y, k3.y]);
+        let [z0, z1, z2] = u.cubic_jet(m, [k0.z, k1.z, k2.z, k3.z]);
         [
             V3::new(x0, y0, z0),
             V3::new(x1, y1, z1),
@@ -839,7 +830,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 // b.V = (C.V)/|C| (a'.V = 0). g does not change when a' is scaled (|a'| and C
                 // scale alike), so a' is taken at unit size: no product underflows.
                 let k1 = self.axis.speed_scale();
-                let d1 = d1.scaled(T::cst(k1));
+                let d1 = d1.scale(k1);
                 let c = d1.cross(V3::cst(*r));
                 let p = self
                     .sweep
@@ -873,15 +864,15 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
             Framing::Projected(r) => {
                 let k1 = self.axis.speed_scale();
-                projected_frame(d1.scaled(T::cst(k1)), *r)
+                projected_frame(d1.scale(k1), *r)
             }
             Framing::Frenet => {
                 if frenet_shift(&self.axis, u.value()) != 0.0 {
                     return frame_r(&self.axis, &self.framing, u);
                 }
                 let [k1, k2] = self.axis.derivative_scales();
-                let d1 = d1.scaled(T::cst(k1));
-                let c = d1.cross(self.reduced_second_r(u, d2).scaled(T::cst(k2)));
+                let d1 = d1.scale(k1);
+                let c = d1.cross(self.reduced_second_r(u, d2).scale(k2));
                 let t = d1.divided(d1.norm2().sqrt());
                 let b = c.divided(c.norm2().sqrt());
                 [t, b.cross(t), b]

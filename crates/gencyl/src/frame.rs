@@ -516,15 +516,12 @@ pub fn frame_r<T: Real>(axis: &CubicBezier, framing: &Framing, u: T) -> [V3<T>; 
         Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
         Framing::Projected(r) => {
             let k1 = axis.speed_scale();
-            projected_frame(axis.d1_r(u).scaled(T::cst(k1)), *r)
+            projected_frame(axis.d1_r(u).scale(k1), *r)
         }
         Framing::Frenet => {
             let u = u + T::cst(frenet_shift(axis, u.value()));
             let [k1, k2] = axis.derivative_scales();
-            frenet_frame(
-                axis.d1_r(u).scaled(T::cst(k1)),
-                axis.d2_r(u).scaled(T::cst(k2)),
-            )
+            frenet_frame(axis.d1_r(u).scale(k1), axis.d2_r(u).scale(k2))
         }
     }
 }

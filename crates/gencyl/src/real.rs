@@ -69,6 +69,27 @@ pub trait Real:
         let t = self - Self::cst(m);
         Self::lift(k[0]) + t * (Self::lift(k[1]) + t * (Self::lift(k[2]) + t * Self::lift(k[3])))
     }
+    /// Whether `self` is the exact constant `x` (a point, no slope, no remainder), which
+    /// arithmetic may then skip: multiplying by an exact 1 changes nothing, rounding included.
+    /// `false` where a type cannot tell.
+    fn is_exactly(self, _x: f64) -> bool {
+        false
+    }
+    /// A cubic `p` and its first two derivatives at `self`, from enclosures `d` of
+    /// `p(m), p'(m), p''(m), p'''` (a curve's coordinate and its derivatives, say): each by
+    /// [`Real::cubic_at`] with the Taylor coefficients at `m`,
+    /// `p = [d0, d1, d2/2, d3/6]`, `p' = [d1, d2, d3/2, 0]`, `p'' = [d2, d3, 0, 0]`.
+    /// [`Dual`] shares the work: the derivative of each is the value of the next.
+    #[inline(always)]
+    fn cubic_jet(self, m: f64, d: [Interval; 4]) -> [Self; 3] {
+        let zero = Interval::cst(0.0);
+        let [d0, d1, d2, d3] = d;
+        [
+            self.cubic_at(m, [d0, d1, d2.scale(0.5), d3 / Interval::cst(6.0)]),
+            self.cubic_at(m, [d1, d2, d3.scale(0.5), zero]),
+            self.cubic_at(m, [d2, d3, zero, zero]),
+        ]
+    }
 }
 
 impl Real for f64 {
@@ -99,6 +120,10 @@ impl Real for f64 {
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
         f64::sin_cos(self)
+    }
+    #[inline(always)]
+    fn is_exactly(self, x: f64) -> bool {
+        self == x
     }
     #[inline(always)]
     fn scale(self, k: f64) -> Self {
@@ -207,6 +232,34 @@ impl<T: Real> Real for Dual<T> {
             v: self.v.cubic_at(m, k),
             d: self.v.cubic_at(m, dk) * self.d,
         }
+    }
+    /// `(p, p', p'')(x)' = (p', p'', p''')(x) x'`: the derivatives' values are the models the
+    /// jet holds already (enclosures of the same functions as [`Dual::cubic_at`]'s, from the
+    /// coefficients themselves rather than rescaled ones), and `p''' = d3` is constant.
+    #[inline(always)]
+    fn cubic_jet(self, m: f64, d: [Interval; 4]) -> [Self; 3] {
+        let [p0, p1, p2] = self.v.cubic_jet(m, d);
+        // The variable itself (`x' = 1`, the isolator's case) needs no product.
+        let one = self.d.is_exactly(1.0);
+        let chain = |p: T| if one { p } else { p * self.d };
+        [
+            Dual {
+                v: p0,
+                d: chain(p1),
+            },
+            Dual {
+                v: p1,
+                d: chain(p2),
+            },
+            Dual {
+                v: p2,
+                d: chain(T::lift(d[3])),
+            },
+        ]
+    }
+    #[inline(always)]
+    fn is_exactly(self, x: f64) -> bool {
+        self.v.is_exactly(x) && self.d.is_exactly(0.0)
     }
     #[inline(always)]
     fn value(self) -> f64 {
@@ -449,6 +502,10 @@ impl Neg for Interval {
 
 impl Real for Interval {
     const ENCLOSURE: bool = true;
+    #[inline(always)]
+    fn is_exactly(self, x: f64) -> bool {
+        self.lo == x && self.hi == x
+    }
     #[inline(always)]
     fn cst(x: f64) -> Self {
         Interval { lo: x, hi: x }
@@ -718,6 +775,10 @@ impl Neg for Taylor {
 impl Real for Taylor {
     const ENCLOSURE: bool = true;
     #[inline(always)]
+    fn is_exactly(self, x: f64) -> bool {
+        self.c == x && self.s == 0.0 && self.rho == 0.0
+    }
+    #[inline(always)]
     fn cst(x: f64) -> Self {
         Taylor {
             c: x,
@@ -946,6 +1007,16 @@ impl<T: Real> V3<T> {
             x: self.x * k,
             y: self.y * k,
             z: self.z * k,
+        }
+    }
+    /// `self * k` for a constant `k` ([`Real::scale`]: for a [`Dual`] two products a
+    /// coordinate, not a dual product's three).
+    #[inline(always)]
+    pub fn scale(self, k: f64) -> Self {
+        V3 {
+            x: self.x.scale(k),
+            y: self.y.scale(k),
+            z: self.z.scale(k),
         }
     }
     /// `self / k`.
@@ -1222,6 +1293,97 @@ mod tests {
                 assert!(admits(a.cubic_at(m, kc), t, v), "cubic at {m}: {a:?}");
             }
         }
+    }
+
+    /// `cubic_jet` encloses a cubic and its first two derivatives over a cell, and in a [`Dual`]
+    /// their derivatives too (chained through the variable's own derivative, 1 or not): for
+    /// `Dual<Taylor>`, `Dual<Interval>` and `Taylor`, at points sampled across the cell and at
+    /// its ends, with the coefficients known only as intervals around the true ones.
+    #[test]
+    fn cubic_jets_enclose_the_cubic_and_its_derivatives() {
+        let mut rng = Lcg(77);
+        for case in 0..2000 {
+            // p(x) = sum c_i (x - m)^i, exact coefficients; the jet gets p^(j)(m) widened.
+            let c: [f64; 4] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+            let (lo, hi) = {
+                let a = rng.range(-1.0, 2.0);
+                (a, a + 10f64.powf(rng.range(-9.0, 0.0)))
+            };
+            let m = 0.5 * (lo + hi);
+            let p = |x: f64, j: usize| {
+                let z = x - m;
+                match j {
+                    0 => c[0] + z * (c[1] + z * (c[2] + z * c[3])),
+                    1 => c[1] + z * (2.0 * c[2] + z * 3.0 * c[3]),
+                    2 => 2.0 * c[2] + 6.0 * c[3] * z,
+                    _ => 6.0 * c[3],
+                }
+            };
+            let widen = |v: f64| {
+                let w = if case % 3 == 0 {
+                    0.0
+                } else {
+                    1e-12 * (1.0 + v.abs())
+                };
+                Interval::new(v - w, v + w)
+            };
+            let d = [0, 1, 2, 3].map(|j| widen(p(m, j)));
+            // The variable's derivative: 1 (the isolator's) or another constant.
+            let dx = if case % 2 == 0 {
+                1.0
+            } else {
+                rng.range(-3.0, 3.0)
+            };
+            let taylor = Dual {
+                v: Taylor::var(lo, hi),
+                d: Taylor::cst(dx),
+            }
+            .cubic_jet(m, d);
+            let interval = Dual {
+                v: Interval::exact(lo, hi),
+                d: Interval::cst(dx),
+            }
+            .cubic_jet(m, d);
+            let plain = Taylor::var(lo, hi).cubic_jet(m, d);
+            for i in 0..=20 {
+                let x = lo + (hi - lo) * i as f64 / 20.0;
+                let t = x - m;
+                for j in 0..3 {
+                    let (value, slope) = (p(x, j), p(x, j + 1) * dx);
+                    let slack = 1e-13 * (1.0 + value.abs() + slope.abs());
+                    assert!(admits(taylor[j].v, t, value), "case {case}: Taylor p^({j})");
+                    assert!(admits(plain[j], t, value), "case {case}: plain p^({j})");
+                    assert!(
+                        admits(taylor[j].d, t, slope),
+                        "case {case}: Taylor p^({j})' at {x}: {slope} not in {:?}",
+                        taylor[j].d
+                    );
+                    let iv = interval[j];
+                    assert!(
+                        iv.v.lo - slack <= value && value <= iv.v.hi + slack,
+                        "case {case}: interval p^({j})"
+                    );
+                    assert!(
+                        iv.d.lo - slack <= slope && slope <= iv.d.hi + slack,
+                        "case {case}: interval p^({j})'"
+                    );
+                }
+            }
+        }
+        // What the shortcut for an exact 1 may rely on.
+        assert!(Taylor::cst(1.0).is_exactly(1.0));
+        assert!(
+            !Taylor::var(0.0, 1.0).is_exactly(0.5),
+            "a variable is no constant"
+        );
+        assert!(!Taylor::lift(Interval::new(1.0, 1.0 + 1e-15)).is_exactly(1.0));
+        assert!(Dual::var(Taylor::var(0.0, 1.0)).d.is_exactly(1.0));
+        assert!(
+            !Dual::var(2.0).is_exactly(2.0),
+            "its derivative is 1, not 0"
+        );
+        assert!(Dual::<f64>::cst(2.0).is_exactly(2.0));
+        assert!(Interval::cst(1.0).is_exactly(1.0) && !Interval::new(1.0, 2.0).is_exactly(1.0));
     }
 
     /// The point of Taylor models: they enclose a smooth function's range, and its derivative's,
