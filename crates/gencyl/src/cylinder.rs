@@ -831,7 +831,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 // scale alike), so a' is taken at unit size: no product underflows.
                 let k1 = self.axis.speed_scale();
                 let d1 = d1.scale(k1);
-                let c = d1.cross(V3::cst(*r));
+                let c = d1.cross_cst(*r);
                 let p = self
                     .sweep
                     .inverse(u, V2::new(d1.norm2().sqrt() * v.dot_cst(*r), c.dot(v)));

@@ -496,7 +496,7 @@ fn unit_scaled(axis: &CubicBezier) -> CubicBezier {
 /// `n` is the component of `r` normal to `t`, normalised: `(a' x r) x a' = |a'|^2 r - (a'.r) a'`.
 #[inline(always)]
 pub(crate) fn projected_frame<T: Real>(d1: V3<T>, r: DVec3) -> [V3<T>; 3] {
-    let c = d1.cross(V3::cst(r));
+    let c = d1.cross_cst(r);
     let t = d1.divided(d1.norm2().sqrt());
     let b = c.divided(c.norm2().sqrt());
     [t, b.cross(t), b]

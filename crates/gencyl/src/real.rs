@@ -69,6 +69,13 @@ pub trait Real:
         let t = self - Self::cst(m);
         Self::lift(k[0]) + t * (Self::lift(k[1]) + t * (Self::lift(k[2]) + t * Self::lift(k[3])))
     }
+    /// `1 / self`.
+    fn recip(self) -> Self {
+        Self::cst(1.0) / self
+    }
+    /// Whether `a / b` is `a * b.recip()` to the bit, so that quotients by one divisor may
+    /// share its reciprocal (as [`Dual`]'s quotient does).
+    const DIV_BY_RECIP: bool = false;
     /// Whether `self` is the exact constant `x` (a point, no slope, no remainder), which
     /// arithmetic may then skip: multiplying by an exact 1 changes nothing, rounding included.
     /// `false` where a type cannot tell.
@@ -190,6 +197,15 @@ impl<T: Real> Div for Dual<T> {
     /// `(f/g)' = (f' g - f g') / g^2`
     #[inline(always)]
     fn div(self, o: Self) -> Self {
+        if T::DIV_BY_RECIP {
+            // The same values, one reciprocal.
+            let r = o.v.recip();
+            let v = self.v * r;
+            return Dual {
+                v,
+                d: (self.d - v * o.d) * r,
+            };
+        }
         let v = self.v / o.v;
         Dual {
             v,
@@ -685,7 +701,7 @@ impl Taylor {
 
     /// `1 / self`.
     #[inline(always)]
-    fn recip(self) -> Self {
+    fn reciprocal(self) -> Self {
         let lo = down(self.c.abs() - self.spread());
         if !(lo > 0.0) {
             return Taylor {
@@ -757,7 +773,7 @@ impl Div for Taylor {
     #[inline(always)]
     #[allow(clippy::suspicious_arithmetic_impl)]
     fn div(self, o: Self) -> Self {
-        self * o.recip()
+        self * o.reciprocal()
     }
 }
 impl Neg for Taylor {
@@ -774,6 +790,11 @@ impl Neg for Taylor {
 
 impl Real for Taylor {
     const ENCLOSURE: bool = true;
+    const DIV_BY_RECIP: bool = true;
+    #[inline(always)]
+    fn recip(self) -> Self {
+        self.reciprocal()
+    }
     #[inline(always)]
     fn is_exactly(self, x: f64) -> bool {
         self.c == x && self.s == 0.0 && self.rho == 0.0
@@ -993,6 +1014,15 @@ impl<T: Real> V3<T> {
             x: self.y * o.z - self.z * o.y,
             y: self.z * o.x - self.x * o.z,
             z: self.x * o.y - self.y * o.x,
+        }
+    }
+    /// The cross product with a constant vector (by [`Real::scale`]).
+    #[inline(always)]
+    pub fn cross_cst(self, o: glam::DVec3) -> Self {
+        V3 {
+            x: self.y.scale(o.z) - self.z.scale(o.y),
+            y: self.z.scale(o.x) - self.x.scale(o.z),
+            z: self.x.scale(o.y) - self.y.scale(o.x),
         }
     }
     /// `|self|^2`.
@@ -1384,6 +1414,52 @@ mod tests {
         );
         assert!(Dual::<f64>::cst(2.0).is_exactly(2.0));
         assert!(Interval::cst(1.0).is_exactly(1.0) && !Interval::new(1.0, 2.0).is_exactly(1.0));
+    }
+
+    /// The shortcuts by constants give what the general operations give: `cross_cst` the cross
+    /// product with a constant vector (to the bit in `f64`, and enclosing the members' in
+    /// Taylor models), and `Dual<Taylor>`'s quotient, which shares one reciprocal, the two
+    /// quotients of the general formula to the bit.
+    #[test]
+    fn constant_shortcuts_agree_with_the_general_operations() {
+        use glam::DVec3;
+        let mut rng = Lcg(31);
+        for _ in 0..5000 {
+            let h = rng.range(0.0, 0.3);
+            let k = DVec3::new(
+                rng.range(-2.0, 2.0),
+                rng.range(-2.0, 2.0),
+                rng.range(-2.0, 2.0),
+            );
+            // Three models sharing `t`, and a member of each there.
+            let t = rng.range(-h, h);
+            let [(a, _, _), (b, _, _), (c, _, _)] = [0, 1, 2].map(|_| random_model(&mut rng, h));
+            let member = |m: Taylor, f: f64| m.c + m.s * t + f * m.rho;
+            let x = DVec3::new(member(a, 0.37), member(b, -0.8), member(c, 1.0));
+            let got = V3::new(a, b, c).cross_cst(k);
+            let want = x.cross(k);
+            for (m, w) in [(got.x, want.x), (got.y, want.y), (got.z, want.z)] {
+                assert!(admits(m, t, w), "cross_cst: {w} not in {m:?}");
+            }
+            let plain = V3::new(x.x, x.y, x.z);
+            assert_eq!(plain.cross_cst(k).value(), plain.cross(V3::cst(k)).value());
+            // Quotients.
+            let (p, q) = (
+                Dual { v: a, d: b },
+                Dual {
+                    v: c + Taylor::cst(4.0),
+                    d: b,
+                },
+            );
+            let quotient = p / q;
+            let v = p.v / q.v;
+            let d = (p.d - v * q.d) / q.v;
+            assert_eq!(
+                (quotient.v, quotient.d),
+                (v, d),
+                "one reciprocal, the same models"
+            );
+        }
     }
 
     /// The point of Taylor models: they enclose a smooth function's range, and its derivative's,
