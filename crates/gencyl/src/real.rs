@@ -69,6 +69,13 @@ pub trait Real:
         let t = self - Self::cst(m);
         Self::lift(k[0]) + t * (Self::lift(k[1]) + t * (Self::lift(k[2]) + t * Self::lift(k[3])))
     }
+    /// `R(-theta) (x, y) = (c x + s y, c y - s x)` with `(s, c) = (sin, cos)(theta)`,
+    /// `theta = self`: the sweep rule's inverse rotation.
+    #[inline(always)]
+    fn rotate_back(self, x: Self, y: Self) -> (Self, Self) {
+        let (s, c) = self.sin_cos();
+        (c * x + s * y, c * y - s * x)
+    }
     /// `1 / self`.
     fn recip(self) -> Self {
         Self::cst(1.0) / self
@@ -248,6 +255,35 @@ impl<T: Real> Real for Dual<T> {
             v: self.v.cubic_at(m, k),
             d: self.v.cubic_at(m, dk) * self.d,
         }
+    }
+    /// For enclosures, the derivative by `s' = theta' c`, `c' = -theta' s`:
+    /// `(c x + s y)' = theta' (c y - s x) + (c x' + s y')` and
+    /// `(c y - s x)' = -theta' (c x + s y) + (c y' - s x')`, the turned values and the turned
+    /// derivatives: six products where the dual products took ten (and the sine's and cosine's
+    /// derivatives no longer enter twice). The values are the plain rule's to the bit; point
+    /// types keep the plain rule.
+    #[inline(always)]
+    fn rotate_back(self, x: Self, y: Self) -> (Self, Self) {
+        if !T::ENCLOSURE {
+            let (s, c) = self.sin_cos();
+            return (c * x + s * y, c * y - s * x);
+        }
+        let (s, c) = self.v.sin_cos();
+        let (vx, vy) = (c * x.v + s * y.v, c * y.v - s * x.v);
+        let (dx, dy) = (c * x.d + s * y.d, c * y.d - s * x.d);
+        if self.d.is_exactly(0.0) {
+            return (Dual { v: vx, d: dx }, Dual { v: vy, d: dy });
+        }
+        (
+            Dual {
+                v: vx,
+                d: self.d * vy + dx,
+            },
+            Dual {
+                v: vy,
+                d: dy - self.d * vx,
+            },
+        )
     }
     /// `(p, p', p'')(x)' = (p', p'', p''')(x) x'`: the derivatives' values are the models the
     /// jet holds already (enclosures of the same functions as [`Dual::cubic_at`]'s, from the
@@ -1459,6 +1495,75 @@ mod tests {
                 (v, d),
                 "one reciprocal, the same models"
             );
+        }
+    }
+
+    /// `rotate_back` in `Dual<Taylor>` and `Dual<Interval>` encloses the turned functions and
+    /// their derivatives (analytic, at points across the cell), with the values to the bit of
+    /// the plain rule's; a constant angle (no derivative) too.
+    #[test]
+    fn rotate_back_encloses_the_turned_functions_and_their_derivatives() {
+        let mut rng = Lcg(5);
+        for case in 0..2000 {
+            let (th0, k) = (
+                rng.range(-4.0, 4.0),
+                if case % 4 == 0 {
+                    0.0
+                } else {
+                    rng.range(-7.0, 7.0)
+                },
+            );
+            let a: [f64; 3] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+            let b: [f64; 3] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+            fn quad<T: Real>(c: [f64; 3], u: T) -> T {
+                T::cst(c[0]) + u * (T::cst(c[1]) + u.scale(c[2]))
+            }
+            let lo = rng.range(-1.0, 1.0);
+            let hi = lo + 10f64.powf(rng.range(-8.0, -0.5));
+            let theta = |u: Dual<Taylor>| {
+                if k == 0.0 {
+                    Dual::cst(th0)
+                } else {
+                    Dual::cst(th0) + u.scale(k)
+                }
+            };
+            let u = Dual::var(Taylor::var(lo, hi));
+            let (x, y) = (quad(a, u), quad(b, u));
+            let (rx, ry) = theta(u).rotate_back(x, y);
+            let (s, c) = theta(u).v.sin_cos();
+            assert_eq!(
+                (rx.v, ry.v),
+                (c * x.v + s * y.v, c * y.v - s * x.v),
+                "values"
+            );
+            let ui = Dual::var(Interval::exact(lo, hi));
+            let th = Dual::cst(th0) + ui.scale(k);
+            let (ix, iy) = th.rotate_back(quad(a, ui), quad(b, ui));
+            let m = 0.5 * (lo + hi);
+            for i in 0..=16 {
+                let w = lo + (hi - lo) * i as f64 / 16.0;
+                let p = Dual::var(w);
+                let (px, py) = (Dual::cst(th0) + p.scale(k)).rotate_back(quad(a, p), quad(b, p));
+                // The truth from the plain rule in f64 (point types keep it), with slack for its
+                // rounding.
+                for (name, model, iv, want) in [
+                    ("x", rx.v, ix.v, px.v),
+                    ("y", ry.v, iy.v, py.v),
+                    ("x'", rx.d, ix.d, px.d),
+                    ("y'", ry.d, iy.d, py.d),
+                ] {
+                    let slack = 1e-13 * (1.0 + want.abs());
+                    let t = w - m;
+                    assert!(
+                        (want - (model.c + model.s * t)).abs() <= model.rho + slack,
+                        "case {case} {name} at {w}: {want} not in {model:?}"
+                    );
+                    assert!(
+                        iv.lo - slack <= want && want <= iv.hi + slack,
+                        "case {case} {name}: interval {iv:?} misses {want}"
+                    );
+                }
+            }
         }
     }
 

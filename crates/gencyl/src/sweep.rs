@@ -80,15 +80,21 @@ impl HairSweep {
         Self::lerp(self.minor, u)
     }
 
-    /// `(sin, cos)` of the rotation `theta(u)`; of the constant where it does not turn (the
-    /// same values, without carrying `u`'s enclosure through the sine and cosine).
+    /// The rotation `theta(u)`; the constant where it does not turn (the same values, without
+    /// carrying `u`'s enclosure through the sine and cosine).
+    #[inline]
+    fn angle<T: Real>(&self, u: T) -> T {
+        if self.rotation[0] == self.rotation[1] {
+            T::cst(self.rotation[0])
+        } else {
+            Self::lerp(self.rotation, u)
+        }
+    }
+
+    /// `(sin, cos)` of the rotation `theta(u)` ([`Self::angle`]).
     #[inline]
     fn turn<T: Real>(&self, u: T) -> (T, T) {
-        if self.rotation[0] == self.rotation[1] {
-            T::cst(self.rotation[0]).sin_cos()
-        } else {
-            Self::lerp(self.rotation, u).sin_cos()
-        }
+        self.angle(u).sin_cos()
     }
 
     /// `x / k(u)` for a radius `k = [k0, k1]` linear in `u`; by the constant where `k0 = k1`.
@@ -112,11 +118,8 @@ impl SweepRule for HairSweep {
 
     #[inline]
     fn inverse<T: Real>(&self, u: T, q: V2<T>) -> V2<T> {
-        let (s, c) = self.turn(u);
-        V2::new(
-            Self::over(self.major, u, c * q.x + s * q.y),
-            Self::over(self.minor, u, c * q.y - s * q.x),
-        )
+        let (x, y) = self.angle(u).rotate_back(q.x, q.y);
+        V2::new(Self::over(self.major, u, x), Self::over(self.minor, u, y))
     }
 
     /// The stretch of `R diag(A, B)` is `max(A(u), B(u))`, a convex function of `u` (the maximum
