@@ -270,6 +270,7 @@ fn unit_scale(m: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::real::Dual;
+    use crate::test_rng::Dd;
 
     fn sample() -> CubicBezier {
         CubicBezier::new([
@@ -287,34 +288,6 @@ mod tests {
         let a2 = 3.0 * (p[2] - 2.0 * p[1] + p[0]);
         let a3 = p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0];
         p[0] + u * (a1 + u * (a2 + u * a3))
-    }
-
-    /// A double-double number `hi + lo` (about 106 bits): the oracle of the rounding bounds.
-    #[derive(Clone, Copy)]
-    struct Dd(f64, f64);
-
-    impl Dd {
-        fn of(x: f64) -> Dd {
-            Dd(x, 0.0)
-        }
-        fn add(self, o: Dd) -> Dd {
-            // Knuth's two-sum of the high parts, then the low parts added in.
-            let s = self.0 + o.0;
-            let v = s - self.0;
-            let e = (self.0 - (s - v)) + (o.0 - v) + self.1 + o.1;
-            let hi = s + e;
-            Dd(hi, e - (hi - s))
-        }
-        fn mul(self, o: Dd) -> Dd {
-            // The exact product of the high parts by a fused multiply-add, then the cross terms.
-            let p = self.0 * o.0;
-            let e = self.0.mul_add(o.0, -p) + (self.0 * o.1 + self.1 * o.0);
-            let hi = p + e;
-            Dd(hi, e - (hi - p))
-        }
-        fn value(self) -> f64 {
-            self.0 + self.1
-        }
     }
 
     /// `sum P_i C(n, i) s^(n-i) m^i` in double-double, with `s = 1 - m` exact.
