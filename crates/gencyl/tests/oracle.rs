@@ -30,7 +30,9 @@
 //! march step. A *miss* is a crossing with no library hit within `T_TOL * size` (no hit at all,
 //! or one that is too far off), a *false hit* a library hit with no crossing within that
 //! distance (an unpaired hit is first re-examined with a 256x finer march around it, which
-//! resolves thin crossing pairs the coarse march steps over). Not asserted on (the "grazing
+//! resolves thin crossing pairs the coarse march steps over, and then by the membership test on
+//! both sides of it, half the distance to the nearest other hit away, which confirms a clip
+//! shorter than even the fine step). Not asserted on (the "grazing
 //! band", counted and printed): crossings with `|n . d_unit| < 1e-3`, crossings within two march
 //! steps of another crossing (a pair there may be invisible to the march), crossings on the rim
 //! where side and cap meet, and crossings within 1e-9 size of tmin / tmax. With `caps = false`
@@ -1408,4 +1410,84 @@ fn oracle_strand_straight_ellipse() {
 fn oracle_strand_wavy_trilobal() {
     let (c, r) = strand_cases().swap_remove(2);
     run_case_projected(&c, r, 23, &[(Method::Auto, 1000), (Method::General, 1000)]);
+}
+
+/// Found by the intersector fuzz target: a ray clips the corner of a tapering, twisted
+/// elliptical fiber where its side meets its start cap, inside for `4.7e-8` in `t` (`9e-8` of
+/// the fiber's size), far below the oracle's fine march step. The library's two hits (side at
+/// `u = 5e-8`, then the start cap) are real: the oracle's membership test is inside between them
+/// and outside beyond. The comparison confirms both, and still flags a spurious hit placed
+/// next to them (its nearest neighbour's boundary does not confirm it).
+#[test]
+fn oracle_confirms_a_clip_of_the_rim_shorter_than_its_march() {
+    let spec = FiberSpec {
+        bezier: [
+            v3(0.06297738504408622, -0.0281507083782786, -0.0),
+            v3(0.42628357504699493, -0.2, -0.03670500649346247),
+            v3(0.5908883012491598, -0.2, -0.07341001298692494),
+            v3(1.09453125, -0.022210112411944795, -0.11011501948038742),
+        ],
+        major_radius: [0.005, 0.006427640281776697],
+        minor_radius: [0.004439400471451083, 0.004439400471451083],
+        rotation: [0.0, 4.713168338132035],
+        caps: true,
+        normal_hint: None,
+        section: Section::default(),
+    };
+    let ray = Ray::new(
+        v3(
+            0.06416521013813771,
+            -0.026708453238100803,
+            0.0041077801268881746,
+        ),
+        v3(-1.1616721418723452, 0.9338365059535992, -1.2273446102812982),
+    );
+    let case = Case {
+        name: "rim clip",
+        spec: spec.clone(),
+        loop_points: None,
+    };
+    let oracle = Oracle::new(&spec, None);
+    let ctx = oracle.ray_ctx(&ray, 0.0, f64::INFINITY);
+    let crossings = oracle.crossings(&ctx);
+    let mut hits = Vec::new();
+    spec.build()
+        .unwrap()
+        .intersect_all_with(&ray, 0.0, f64::INFINITY, Method::Auto, &mut hits);
+    let parts: Vec<Part> = hits.iter().map(|h| h.part).collect();
+    assert_eq!(parts, [Part::Side, Part::StartCap], "{hits:?}");
+    let (t0, t1) = (hits[0].t, hits[1].t);
+    assert!(t1 - t0 < 1e-7, "a short clip: {t0} .. {t1}");
+    let gap = t1 - t0;
+    assert!(
+        oracle.inside(ctx.at(0.5 * (t0 + t1))),
+        "inside between the hits"
+    );
+    assert!(!oracle.inside(ctx.at(t0 - gap)) && !oracle.inside(ctx.at(t1 + gap)));
+    let compare = |hits: &[Hit]| {
+        let mut st = Stats::default();
+        compare_ray(
+            &oracle,
+            &case,
+            &ray,
+            0.0,
+            f64::INFINITY,
+            hits,
+            Method::Auto,
+            &crossings,
+            &mut st,
+        );
+        (st.misses, st.false_hits, st.failures)
+    };
+    assert_eq!(compare(&hits), (0, 0, 0), "both hits confirmed");
+    let mut spurious = hits.clone();
+    spurious.push(Hit {
+        t: t1 + 0.6 * gap,
+        ..hits[1]
+    });
+    assert_eq!(
+        compare(&spurious).1,
+        1,
+        "a spurious hit beside them is flagged"
+    );
 }

@@ -1590,6 +1590,23 @@ pub fn compare_ray(
             matched.push(Some(i));
             continue;
         }
+        // A clip of a corner shorter than the fine march's step (a ray through the rim, inside
+        // for 1e-7 of the size): the membership test confirms a boundary within half the
+        // distance to the nearest other library hit, where it differs on the two sides of this
+        // one (so a spurious hit beside a real one, or a real crossing reported twice, is not
+        // confirmed by its neighbour's boundary).
+        let nearest = hits
+            .iter()
+            .map(|n| (n.t - h.t).abs())
+            .filter(|&g| g > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let delta = 0.5 * nearest;
+        let clip = delta <= match_tol && o.inside(r.at(h.t - delta)) != o.inside(r.at(h.t + delta));
+        if clip {
+            st.fine_resolved += 1;
+            used[i] = true;
+            continue;
+        }
         let cosi = h.normal.dot(r.d) / r.dl;
         let near_dropped_rim = dropped
             .iter()
