@@ -251,9 +251,16 @@ fn combine<T: Real, const N: usize>(pts: &[DVec3; N], w: &[T; N]) -> V3<T> {
 /// `1e-11` beyond each end).
 pub const JET_MARGIN: f64 = 1e-10;
 
-/// The largest `|coordinate|` of the points.
+/// The largest `|coordinate|` of the points (finite ones: the axis is checked at construction).
+/// By comparisons, not `f64::max`, whose NaN handling costs several instructions each: the
+/// projection frame's `g` scales `a'` by this at every evaluation (2.9% of an elliptical test).
+#[inline]
 fn largest_coordinate(pts: &[DVec3]) -> f64 {
-    pts.iter().fold(0.0f64, |m, p| m.max(p.abs().max_element()))
+    let larger = |a: f64, b: f64| if a > b { a } else { b };
+    pts.iter().fold(0.0f64, |m, p| {
+        let a = p.abs();
+        larger(m, larger(larger(a.x, a.y), a.z))
+    })
 }
 
 /// `1 / m` for a positive finite size `m`, else 1 (a vanishing or unbounded derivative keeps its
