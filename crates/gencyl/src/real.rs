@@ -636,8 +636,9 @@ impl Real for Interval {
 /// costly as an [`Interval`] operation.
 ///
 /// Rounding: `c` and `s` are computed to nearest, and each operation adds a bound on their
-/// rounding errors to `rho` (4u times the magnitude of the rounded terms, u = 2^-53, against at
-/// most 3 roundings each). `rho` itself is a sum of products of non-negative terms, each
+/// rounding errors to `rho` (4u times a bound on the magnitude of the rounded terms,
+/// u = 2^-53, against at most 3 roundings each; a product bounds them by its factors'
+/// magnitudes, which it has, and adds what an underflow in those may hide). `rho` itself is a sum of products of non-negative terms, each
 /// computed to nearest from computed non-negative terms, fewer than 40 roundings in all, so it
 /// is low by less than a factor `1 - 40u`; each operation multiplies it by `1 + 2^-44` and adds
 /// `1e-300` (underflow), which more than covers that. `sqrt` is correctly rounded (IEEE 754);
@@ -790,7 +791,11 @@ impl Mul for Taylor {
     /// Rounding: the rounded terms `c0 = a0 b0`, `shift`, `c = c0 + shift` and `(s1 + s2) h`
     /// add up to at most `2 |a0| |b0| + |a1 b1| h^2 + (|a0 b1| + |a1 b0|) h` (to a factor
     /// `1 + 4u`), which is at most `2 (|a0| + |a1| h)(|b0| + |b1| h)`: `4u` times that bounds
-    /// their errors with two products, where summing the terms took ten operations.
+    /// their errors with two products, where summing the terms took ten operations. Where
+    /// `|a1| h` or `|b1| h` underflows it may lose up to `2^-1075`, which a huge other factor
+    /// would scale past what the `1e-300` of each operation covers: each factor is taken plus
+    /// the smallest normal `2^-1022` (absorbed, where a factor is larger than `2^-969`, by the
+    /// bound's slack).
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
         let h = fmax(self.h, o.h);
@@ -800,8 +805,11 @@ impl Mul for Taylor {
         let c = c0 + shift;
         let ra = self.c.abs() + self.s.abs() * h;
         let rb = o.c.abs() + o.s.abs() * h;
-        let rho =
-            shift.abs() + ra * o.rho + rb * self.rho + self.rho * o.rho + (2.0 * U4) * (ra * rb);
+        let rho = shift.abs()
+            + ra * o.rho
+            + rb * self.rho
+            + self.rho * o.rho
+            + (2.0 * U4) * ((ra + f64::MIN_POSITIVE) * (rb + f64::MIN_POSITIVE));
         Taylor::finish(c, s1 + s2, rho, h)
     }
 }
@@ -1616,6 +1624,26 @@ mod tests {
         }
         // The bound is not vacuous: some error comes within a factor 20 of it.
         assert!(tight > 0.05, "largest error / rho = {tight}");
+        // A slope term that underflows against a huge other factor (found by review): the
+        // error of `s = a0 b1` times `t` is 1.2e-146, while `ra rb` is 0.
+        let (h, t) = (1e-160, 1e-160);
+        let a = Taylor {
+            c: 1.2345678901234567e200,
+            s: 0.0,
+            rho: 0.0,
+            h,
+        };
+        let b = Taylor {
+            c: 0.0,
+            s: 1.1111111111111111e-170,
+            rho: 0.0,
+            h,
+        };
+        let m = a * b;
+        let exact = Dd::of(a.c).mul(Dd::of(b.s)).mul(Dd::of(t));
+        let err = exact.add(Dd::of(-m.c)).add(Dd::of(-m.s).mul(Dd::of(t)));
+        let err = err.value().abs();
+        assert!(err <= m.rho, "underflow: {err:e} > {:e}", m.rho);
     }
 
     /// The point of Taylor models: they enclose a smooth function's range, and its derivative's,
