@@ -1417,7 +1417,8 @@ fn oracle_strand_wavy_trilobal() {
 /// the fiber's size), far below the oracle's fine march step. The library's two hits (side at
 /// `u = 5e-8`, then the start cap) are real: the oracle's membership test is inside between them
 /// and outside beyond. The comparison confirms both, and still flags a spurious hit placed
-/// next to them (its nearest neighbour's boundary does not confirm it).
+/// next to them (its nearest neighbour's boundary does not confirm it) and a hit reported
+/// twice.
 #[test]
 fn oracle_confirms_a_clip_of_the_rim_shorter_than_its_march() {
     let spec = FiberSpec {
@@ -1489,5 +1490,13 @@ fn oracle_confirms_a_clip_of_the_rim_shorter_than_its_march() {
         compare(&spurious).1,
         1,
         "a spurious hit beside them is flagged"
+    );
+    let mut twice = hits.clone();
+    twice.insert(0, hits[0]);
+    // Neither copy is confirmed (each is the other's nearest hit, at distance 0).
+    assert_eq!(
+        compare(&twice).1,
+        2,
+        "the side hit reported twice is flagged"
     );
 }

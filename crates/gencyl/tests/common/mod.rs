@@ -1594,14 +1594,20 @@ pub fn compare_ray(
         // for 1e-7 of the size): the membership test confirms a boundary within half the
         // distance to the nearest other library hit, where it differs on the two sides of this
         // one (so a spurious hit beside a real one, or a real crossing reported twice, is not
-        // confirmed by its neighbour's boundary).
+        // confirmed by its neighbour's boundary; by index, so that an exact duplicate is at
+        // distance 0 and confirms nothing), both probes within `tmin..tmax`.
         let nearest = hits
             .iter()
-            .map(|n| (n.t - h.t).abs())
-            .filter(|&g| g > 0.0)
+            .enumerate()
+            .filter(|&(j, _)| j != i)
+            .map(|(_, n)| (n.t - h.t).abs())
             .fold(f64::INFINITY, f64::min);
         let delta = 0.5 * nearest;
-        let clip = delta <= match_tol && o.inside(r.at(h.t - delta)) != o.inside(r.at(h.t + delta));
+        let clip = delta > 0.0
+            && delta <= match_tol
+            && h.t - delta >= tmin
+            && h.t + delta <= tmax
+            && o.inside(r.at(h.t - delta)) != o.inside(r.at(h.t + delta));
         if clip {
             st.fine_resolved += 1;
             used[i] = true;

@@ -548,8 +548,10 @@ fn sort_small(prims: &mut [Prim], k: usize) {
 /// Moves the items that satisfy `pred` before the others and returns their count: scans from
 /// both ends and swaps only the pairs out of place (Hoare), a quarter of the items on random
 /// input where moving every match forward swapped half of them, each a 44-byte record through
-/// the stack. The order within each side is unspecified: the trees do not depend on it (a
-/// node's bins are sums and unions, and leaves come from [`build_small`], which sorts).
+/// the stack. The order within each side is unspecified: the trees do not depend on it where
+/// the keys are distinct, as the scenes' are (a node's bins are sums and unions, and leaves
+/// come from [`build_small`], which sorts by centre and key; with repeated keys and equal
+/// centres the order among those primitives follows their input order, as it did before).
 fn partition<T>(v: &mut [T], pred: impl Fn(&T) -> bool) -> usize {
     let (mut lo, mut hi) = (0, v.len());
     loop {
