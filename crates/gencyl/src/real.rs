@@ -638,11 +638,12 @@ impl Real for Interval {
 /// Rounding: `c` and `s` are computed to nearest, and each operation adds a bound on their
 /// rounding errors to `rho` (4u times a bound on the magnitude of the rounded terms,
 /// u = 2^-53, against at most 3 roundings each; a product bounds them by its factors'
-/// magnitudes, which it has, and adds what an underflow in those may hide). `rho` itself is a sum of products of non-negative terms, each
-/// computed to nearest from computed non-negative terms, fewer than 40 roundings in all, so it
-/// is low by less than a factor `1 - 40u`; each operation multiplies it by `1 + 2^-44` and adds
-/// `1e-300` (underflow), which more than covers that. `sqrt` is correctly rounded (IEEE 754);
-/// `sin` and `cos` are taken to be within `4e-16` of the truth, as in [`Interval`]'s `cos`.
+/// magnitudes, which it has, and adds what an underflow in those may hide). `rho` itself is a
+/// sum of products of non-negative terms, each computed to nearest from computed non-negative
+/// terms, fewer than 40 roundings in all, so it is low by less than a factor `1 - 40u`; each
+/// operation multiplies it by `1 + 2^-44` and adds `1e-300` (underflow), which more than covers
+/// that. `sqrt` is correctly rounded (IEEE 754); `sin` and `cos` are taken to be within `4e-16`
+/// of the truth, as in [`Interval`]'s `cos`.
 /// NaN and infinite parts propagate and make the enclosure the whole line.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Taylor {
