@@ -146,10 +146,12 @@ impl CubicBezier {
     /// and `sum P_i w_i` adds at most `4u sum |P_i w_i|` (a rounded product and at most three
     /// rounded sums); `sum |w_i| = (|s| + |m|)^n <= 1 + 1e-9` for `m` in range. So each coordinate
     /// lies within `9u max|P_i| (1 + 1e-9)` of the exact value: the enclosure takes `16u max|P_i|`,
-    /// plus `1e-300 (1 + max|P_i|)` for products that underflow, widened by an ulp
-    /// ([`Interval::new`]). What [`Self::point_r`] and its kin give in [`Interval`] arithmetic, at
-    /// a fifth of the cost. Control points (or hodograph points) beyond `1e300`, whose sums
-    /// could overflow, also give `None`.
+    /// plus `1e-300 (1 + max|P_i|)` for products that underflow. Its bounds `v -+ e` are rounded
+    /// to nearest, off by at most `u (|v| + e) < 1.01u max|P_i|` (as `|v| <= (1 + 1e-9)
+    /// max|P_i|`), which the `7u` to spare covers, so they need no widening. What
+    /// [`Self::point_r`] and its kin give in [`Interval`] arithmetic, at a fifth of the cost.
+    /// Control points (or hodograph points) beyond `1e300`, whose sums could overflow, also give
+    /// `None`; a NaN gives the whole line.
     pub fn jet_enclosure(&self, m: f64) -> Option<[V3<Interval>; 3]> {
         if !(-JET_MARGIN..=1.0 + JET_MARGIN).contains(&m) {
             return None;
@@ -161,7 +163,14 @@ impl CubicBezier {
             }
             let v = combine(pts, w);
             let e = |k: f64| 16.0 * f64::EPSILON * 0.5 * k + 1e-300 * (1.0 + k);
-            let wrap = |v: f64, k: f64| Interval::new(v - e(k), v + e(k));
+            let wrap = |v: f64, k: f64| {
+                let (lo, hi) = (v - e(k), v + e(k));
+                if (hi - lo).is_nan() {
+                    Interval::ENTIRE
+                } else {
+                    Interval::exact(lo, hi)
+                }
+            };
             Some(V3::new(
                 wrap(v.x, size.x),
                 wrap(v.y, size.y),
@@ -373,6 +382,15 @@ mod tests {
         assert!(c.jet_enclosure(-2.0 * JET_MARGIN).is_none());
         assert!(c.jet_enclosure(1.0 + 2.0 * JET_MARGIN).is_none());
         assert!(c.jet_enclosure(f64::NAN).is_none());
+        // A NaN coordinate gives the whole line there, never a NaN bound.
+        let mut nan = c;
+        nan.points[1].y = f64::NAN;
+        let [a, d1, _] = nan.jet_enclosure(0.5).expect("finite sizes");
+        assert_eq!((a.y, d1.y), (Interval::ENTIRE, Interval::ENTIRE));
+        assert!(
+            a.x.width().is_finite(),
+            "the other coordinates are untouched"
+        );
     }
 
     #[test]
