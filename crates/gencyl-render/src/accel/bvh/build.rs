@@ -551,7 +551,7 @@ fn sort_small(prims: &mut [Prim], k: usize) {
 /// the stack. The order within each side is unspecified: the trees do not depend on it where
 /// the keys are distinct, as the scenes' are (a node's bins are sums and unions, and leaves
 /// come from [`build_small`], which sorts by centre and key; with repeated keys and equal
-/// centres the order among those primitives follows their input order, as it did before).
+/// centres the tree depends on their input order, as it did before).
 fn partition<T>(v: &mut [T], pred: impl Fn(&T) -> bool) -> usize {
     let (mut lo, mut hi) = (0, v.len());
     loop {
