@@ -91,12 +91,6 @@ impl HairSweep {
         }
     }
 
-    /// `(sin, cos)` of the rotation `theta(u)` ([`Self::angle`]).
-    #[inline]
-    fn turn<T: Real>(&self, u: T) -> (T, T) {
-        self.angle(u).sin_cos()
-    }
-
     /// `x / k(u)` for a radius `k = [k0, k1]` linear in `u`; by the constant where `k0 = k1`.
     #[inline]
     fn over<T: Real>(k: [f64; 2], u: T, x: T) -> T {
@@ -111,7 +105,7 @@ impl HairSweep {
 impl SweepRule for HairSweep {
     #[inline]
     fn apply<T: Real>(&self, u: T, p: V2<T>) -> V2<T> {
-        let (s, c) = self.turn(u);
+        let (s, c) = self.angle(u).sin_cos();
         let (x, y) = (p.x * self.major_at(u), p.y * self.minor_at(u));
         V2::new(c * x - s * y, s * x + c * y)
     }
