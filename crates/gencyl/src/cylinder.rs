@@ -729,6 +729,25 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         d1.dot(self.axis.point_r(u) - V3::cst(o)) / d1.dot_cst(d)
     }
 
+    /// [`Self::plane_w_r`] over `u` in `[a, b]` as `shift + W(u - m)`, with `W` a Taylor model
+    /// in `t = u - m` about the midpoint `m` ([`crate::real::Taylor::var`]): `W` is
+    /// `a'.(a - o')/(a'.d)` with `o' = o + shift d` the ray's point in the normal plane at `m`
+    /// (which keeps `a - o'` small, as in [`Self::scaled_offset_r`]). Bounded only where `a'.d`
+    /// keeps its sign on `[a, b]`. `o'` is rounded off the ray, by an ulp of its coordinates.
+    pub(crate) fn plane_w_model(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        a: f64,
+        b: f64,
+    ) -> (f64, crate::real::Taylor) {
+        let u = crate::real::Taylor::var(a, b);
+        let shift = self.plane_w_r(o, d, u.value());
+        let shift = if shift.is_finite() { shift } else { 0.0 };
+        let [ao, d1, _] = self.axis_jet_r(u, o + shift * d);
+        (shift, d1.dot(ao) / d1.dot_cst(d))
+    }
+
     /// `(V, q)` with `q = a'.d` and `V = q (o - a) - (a'.(o - a)) d = q (o + w d - a)`: the
     /// in-plane offset times `q`, free of the pole at `q = 0` (a polynomial of degree 5 in `u`).
     /// `a'.V = 0`, so `V` lies in the normal plane.

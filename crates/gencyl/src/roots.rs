@@ -107,26 +107,63 @@ pub fn isolate_roots<F: Function1D>(
     opts: &IsolateOptions,
     out: &mut ArrayVec<f64, MAX_ROOTS>,
 ) -> bool {
+    let first = first_cells(f, lo, hi, opts);
+    isolate_in_cells(f, &first.cells, first.guesses, opts, out)
+}
+
+/// The cells [`isolate_roots`] starts from on `[lo, hi]`, in ascending order: the whole
+/// interval, or with [`IsolateOptions::u_shaped`] the cells of `u_shaped_cells`; and its
+/// estimates of roots (NaN where it has none), where Newton's method starts in a cell that
+/// holds one. The cells may be isolated one by one, in any order, by [`isolate_in_cells`]: a
+/// query that wants only the nearest crossing along a ray takes them by distance and stops
+/// early.
+pub(crate) fn first_cells<F: Function1D>(
+    f: &F,
+    lo: f64,
+    hi: f64,
+    opts: &IsolateOptions,
+) -> FirstCells {
+    let point = |u: f64| f.eval(u);
+    let (flo, fhi) = (point(lo), point(hi));
+    if opts.u_shaped {
+        let (cells, guesses) = u_shaped_cells(&point, (lo, hi), (flo, fhi));
+        FirstCells { cells, guesses }
+    } else {
+        let mut cells = ArrayVec::new();
+        cells.push((lo, hi, flo, fhi));
+        FirstCells {
+            cells,
+            guesses: [f64::NAN; 2],
+        }
+    }
+}
+
+/// What [`first_cells`] returns.
+pub(crate) struct FirstCells {
+    /// `(a, b, f(a), f(b))`, ascending and adjacent.
+    pub cells: ArrayVec<Cell, 3>,
+    /// Estimates of roots, NaN where there are none.
+    pub guesses: [f64; 2],
+}
+
+/// The roots of `f` in the given cells (ascending and disjoint but for shared ends), ascending,
+/// as [`isolate_roots`] finds them; `guesses` start Newton's method in a cell that holds one
+/// ([`first_cells`]). Returns whether the evaluation budget sufficed.
+pub(crate) fn isolate_in_cells<F: Function1D>(
+    f: &F,
+    cells: &[Cell],
+    guesses: [f64; 2],
+    opts: &IsolateOptions,
+    out: &mut ArrayVec<f64, MAX_ROOTS>,
+) -> bool {
     let value = |u: f64| {
         let r = f.eval(Dual::var(u));
         (r.v, r.d)
     };
     let point = |u: f64| f.eval(u);
-    // Cells, processed left to right so roots come out ascending.
+    // Cells, processed left to right so roots come out ascending: pushed last first.
     let mut stack: ArrayVec<Cell, 256> = ArrayVec::new();
-    let (flo, fhi) = (point(lo), point(hi));
-    // Estimates of roots, where a cell that holds one starts Newton's method.
-    let mut guesses = [f64::NAN; 2];
-    if opts.u_shaped {
-        let (cells, estimates) = u_shaped_cells(&point, (lo, hi), (flo, fhi));
-        guesses = estimates;
-        // Pushed last first, so that the cells are taken left to right.
-        for cell in cells.into_iter().rev() {
-            stack.push(cell);
-        }
-    } else {
-        stack.push((lo, hi, flo, fhi));
-    }
+    stack.extend(cells.iter().rev().copied());
     let mut evaluations = 0;
     let mut complete = true;
     while let Some((a, b, fa, fb)) = stack.pop() {
@@ -209,7 +246,7 @@ pub fn isolate_roots<F: Function1D>(
 }
 
 /// A cell of [`isolate_roots`]: `(a, b, f(a), f(b))`.
-type Cell = (f64, f64, f64, f64);
+pub(crate) type Cell = (f64, f64, f64, f64);
 
 /// The first cells of [`isolate_roots`] on `[lo, hi]` for a function
 /// that is typically U-shaped there ([`IsolateOptions::u_shaped`]): where `f` is positive at

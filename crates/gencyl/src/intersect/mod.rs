@@ -23,6 +23,7 @@ mod branches;
 mod curve_curve;
 mod prefilter;
 mod prism;
+mod radial_cells;
 mod round;
 
 use arrayvec::ArrayVec;
@@ -93,7 +94,16 @@ pub(crate) type SideRoots = ArrayVec<SideRoot, 64>;
 /// cells, two caps, the fold envelope's roots (at most 8) and one per switch of the Frenet frame
 /// (at most 8), and room for the roots of polished cells beyond one each (a cell holds one root
 /// of `G`; only the branch-by-branch fallback at a graze can report it twice).
-const MAX_CROSSINGS: usize = 64 + round::MAX_DEFERRED + 2 + 8 + 8 + round::MAX_DEFERRED;
+/// The Radial method's cells ([`radial_cells`]) count like Round cells, with room for the
+/// roots of one beyond its place.
+const MAX_CROSSINGS: usize = 64
+    + round::MAX_DEFERRED
+    + 2
+    + 8
+    + 8
+    + round::MAX_DEFERRED
+    + radial_cells::MAX_RADIAL_CELLS
+    + MAX_ROOTS;
 
 /// A crossing at `t`, before or after its hit is finished.
 #[derive(Clone, Copy, Debug)]
@@ -103,12 +113,14 @@ struct Crossing {
 }
 
 /// A side root still without its section angle (for the Round method) and normal, a finished
-/// hit, or a Round method's root cell not yet polished (its `t` a lower bound).
+/// hit, a Round method's root cell not yet polished, or a Radial method's cell not yet
+/// isolated (for cells, `t` is a lower bound).
 #[derive(Clone, Copy, Debug)]
 enum Pending {
     Side(SideRoot),
     Done(Hit),
     Cell(usize),
+    RadialCell(usize),
 }
 
 /// `g(u) = q^2 (|phi(u)|^2 - R^2) = |q phi|^2 - R^2 q^2`: negative exactly where the ray's
@@ -323,9 +335,17 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             !self.may_fold() && matches!(self.sweep.uniform_scale(), Some([k0, k1]) if k0 == k1);
         let mut roots = SideRoots::new();
         let mut deferred = round::Deferred::new();
+        let mut radial_cells = radial_cells::RadialCells::new();
         let method = self.resolve(method);
         let entries_after = (skip_exits && tube).then_some(tmin - t0);
-        self.side_roots(o, d, method, entries_after, &mut roots, &mut deferred);
+        self.side_roots(
+            o,
+            d,
+            method,
+            entries_after,
+            &mut roots,
+            (&mut deferred, Some(&mut radial_cells)),
+        );
         let mut found: ArrayVec<Crossing, MAX_CROSSINGS> = ArrayVec::new();
         let side = |r: &SideRoot| {
             let t = t0 + r.w;
@@ -343,7 +363,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 && !self.may_fold()
                 && match holds {
                     round::CellCrossing::Entry => !skip_exits || tube,
-                    round::CellCrossing::Exit => !skip_exits,
+                    round::CellCrossing::Exit | round::CellCrossing::Either => !skip_exits,
                     round::CellCrossing::Unsure => false,
                 }
         };
@@ -357,6 +377,15 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 found.push(Crossing {
                     t,
                     hit: Pending::Cell(i),
+                });
+            }
+        }
+        for (i, [w, w_upper], _) in radial_cells.bounds() {
+            let t = t0 + w;
+            if t < tmax && t0 + w_upper > tmin {
+                found.push(Crossing {
+                    t,
+                    hit: Pending::RadialCell(i),
                 });
             }
         }
@@ -449,6 +478,22 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     found.remove(next);
                     let mut polished = SideRoots::new();
                     deferred.polish(i, self, d, &mut polished);
+                    for c in polished.iter().filter_map(side) {
+                        let at = next + found[next..].partition_point(|k| k.t <= c.t);
+                        let _ = found.try_insert(at, c);
+                    }
+                    continue;
+                }
+                Pending::RadialCell(i) => {
+                    // As a Round cell: answered if certain, else isolated in its place.
+                    let ([w, w_upper], holds) = radial_cells.cell(i);
+                    if certain_counts(holds) && t0 + w > tmin && t0 + w_upper < tmax {
+                        return true;
+                    }
+                    next -= 1;
+                    found.remove(next);
+                    let mut polished = SideRoots::new();
+                    radial_cells.isolate(i, self, (o, d), &mut polished);
                     for c in polished.iter().filter_map(side) {
                         let at = next + found[next..].partition_point(|k| k.t <= c.t);
                         let _ = found.try_insert(at, c);
@@ -566,7 +611,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     }
 
     /// Every side root for the local ray `o + w d` (see the module docs): in `out`, or for the
-    /// Round method possibly as cells in `deferred`, polished when reached.
+    /// Round method possibly as cells in `deferred.0`, polished when reached, and for the Radial
+    /// method's oblique ranges as cells in `deferred.1` where given, isolated when reached.
     pub(crate) fn side_roots(
         &self,
         o: DVec3,
@@ -574,7 +620,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         method: Method,
         entries_after: Option<f64>,
         out: &mut SideRoots,
-        deferred: &mut round::Deferred,
+        (deferred, mut radial_cells): (
+            &mut round::Deferred,
+            Option<&mut radial_cells::RadialCells>,
+        ),
     ) {
         let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
         if method == Method::Round {
@@ -594,8 +643,12 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 if self.oblique(d, a, b) {
                     // Away from perpendicular the roots of `g` are simple and well apart, and
                     // `w(u)` is well conditioned: the cheaper one-dimensional isolation.
-                    for u in self.radial_roots_between(o, d, 1.0, a, b) {
-                        self.push_circle_root(o, d, u, out);
+                    if let Some(cells) = radial_cells.as_deref_mut() {
+                        cells.add(self, (o, d), (a, b), out);
+                    } else {
+                        for u in self.radial_roots_between(o, d, 1.0, a, b) {
+                            self.push_circle_root(o, d, u, out);
+                        }
                     }
                     continue;
                 }
@@ -1280,8 +1333,10 @@ mod tests {
     /// Case `case` of the entries and any-hit tests: a round fiber of radius `r` from 1e-4 to
     /// 1e-1 of its length, of constant radius or tapering up to threefold, every fifth at 1e4,
     /// and a ray exactly or nearly (to 1e-14) perpendicular to its axis, nearly along it or
-    /// random, from a point on the surface, inside the fiber or outside it. Returns the fiber,
-    /// the ray and `r`.
+    /// random, from a point on the surface, inside the fiber or outside it. Every seventh fiber
+    /// is elliptical (minor radius 0.2 to 0.9 of the major `r`) and twisted, which the Radial
+    /// method intersects (leaving cells for later, [`radial_cells`]). Returns the fiber, the
+    /// ray and `r`.
     fn fiber_and_ray(rng: &mut Rng, case: usize) -> (Cyl, Ray, f64) {
         let offset = if case.is_multiple_of(5) {
             DVec3::splat(1e4)
@@ -1298,6 +1353,11 @@ mod tests {
         let taper = [1.0, 1.0, rng.range(0.3, 3.0)][case % 3];
         spec.major_radius = [r, r * taper];
         spec.minor_radius = spec.major_radius;
+        if case % 7 == 3 {
+            let k = rng.range(0.2, 0.9);
+            spec.minor_radius = spec.major_radius.map(|m| k * m);
+            spec.rotation = [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)];
+        }
         let cyl = spec.build().unwrap();
         let axis = crate::curve::CubicBezier::new(bezier);
         let u = rng.range(0.02, 0.98);
@@ -1429,9 +1489,10 @@ mod tests {
     }
 
     /// A query that takes the `k`-th hit gets the `k`-th of the full list, though the Round
-    /// method leaves its roots unpolished until a query reaches them ([`round::Deferred`]), and
-    /// the full list comes sorted by `t`: curved round fibers (radii 1e-4 to 1e-1 of their
-    /// length, tapering), rays through points near the axis from random directions, some
+    /// method leaves its roots unpolished until a query reaches them ([`round::Deferred`]) and
+    /// the Radial method its cells unisolated ([`radial_cells`]), and the full list comes sorted
+    /// by `t`: curved round fibers (radii 1e-4 to 1e-1 of their length, tapering), every fourth
+    /// elliptical and twisted, rays through points near the axis from random directions, some
     /// nearly perpendicular to it, some from inside the fiber.
     #[test]
     fn each_accepted_hit_is_the_next_of_the_full_list() {
@@ -1445,6 +1506,12 @@ mod tests {
             let mut spec = FiberSpec::round(bezier, r);
             spec.major_radius = [r, r * rng.range(0.5, 1.5)];
             spec.minor_radius = spec.major_radius;
+            if case % 4 == 3 {
+                // Elliptical and twisted: the Radial method's cells.
+                let k = rng.range(0.2, 0.9);
+                spec.minor_radius = spec.major_radius.map(|m| k * m);
+                spec.rotation = [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)];
+            }
             let cyl = spec.build().unwrap();
             let axis = crate::curve::CubicBezier::new(bezier);
             let u = rng.range(0.0, 1.0);

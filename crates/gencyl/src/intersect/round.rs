@@ -686,11 +686,13 @@ struct DeferredRange {
 
 /// What a deferred root cell holds: certainly a crossing of the side surface where the ray
 /// enters the ball about the axis point (the `-` branch, `z = Z - sqrt(D)`) or leaves it (`+`),
-/// or a root whose branch (or its being a crossing rather than a touch) is not certified.
+/// certainly a crossing of unknown direction (a [`super::radial_cells`] cell), or a root whose
+/// branch (or its being a crossing rather than a touch) is not certified.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum CellCrossing {
     Entry,
     Exit,
+    Either,
     Unsure,
 }
 

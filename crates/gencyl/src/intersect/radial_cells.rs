@@ -1,0 +1,267 @@
+//! Cells of [`Radial`]'s isolation left for later: a nearest-hit query isolates the cell
+//! nearest along the ray first and stops before the others.
+//!
+//! A ray through an elliptical fiber splits its `u` range into three cells
+//! ([`first_cells`]): the entry's, where `g` stays negative, and the exit's. Each is placed
+//! along the ray by an enclosure of `w(u) = a'.(a - o) / (a'.d)` over it
+//! ([`GeneralizedCylinder::plane_w_range`]; on these ranges the ray is [`super::OBLIQUE`], so
+//! `a'.d` keeps its sign), and isolated and polished only when a query reaches its lower bound.
+//! A query that takes the nearest hit then pays for one cell's enclosures and one Newton
+//! solve, not three cells and two.
+
+use arrayvec::ArrayVec;
+use glam::DVec3;
+
+use super::round::CellCrossing;
+use super::{Radial, SideRoots};
+use crate::cylinder::GeneralizedCylinder;
+use crate::real::Interval;
+use crate::roots::{Cell, FirstCells, IsolateOptions, MAX_ROOTS, first_cells, isolate_in_cells};
+use crate::section::CrossSection;
+use crate::sweep::SweepRule;
+
+/// Most cells a [`RadialCells`] keeps (a ray near a fiber usually brings three).
+pub(crate) const MAX_RADIAL_CELLS: usize = 9;
+
+/// A cell of [`Radial`] (`R = 1`) not yet isolated: its ends and values there, the estimates of
+/// roots that start Newton's method in it, and bounds of `w` over it: those of one Taylor model
+/// of `w` over the whole range ([`GeneralizedCylinder::plane_w_model`]), padded by
+/// `1e-9 max|a'| / |d|`, the scale of `w`'s change over `1e-9` in `u` at the least obliqueness
+/// the Radial method isolates (`|a'.d| >= 1e-3 max|a'| |d|`: far above the rounding of the
+/// model's shift and of its origin off the ray, and above a root's refinement in `w`,
+/// [`GeneralizedCylinder::refined_w`]), and by `1e-12 |w|`.
+#[derive(Clone, Copy, Debug)]
+struct Deferred {
+    cell: Cell,
+    guesses: [f64; 2],
+    w: [f64; 2],
+}
+
+/// [`Radial`]'s cells waiting for a query to reach them (see the module docs).
+pub(crate) struct RadialCells {
+    cells: ArrayVec<Deferred, MAX_RADIAL_CELLS>,
+}
+
+impl RadialCells {
+    pub(crate) fn new() -> Self {
+        RadialCells {
+            cells: ArrayVec::new(),
+        }
+    }
+
+    /// Defers the cells of `[a, b]`, or isolates them into `out` at once where there is no
+    /// room for them.
+    pub(crate) fn add<C: CrossSection, S: SweepRule>(
+        &mut self,
+        cyl: &GeneralizedCylinder<C, S>,
+        (o, d): (DVec3, DVec3),
+        (a, b): (f64, f64),
+        out: &mut SideRoots,
+    ) {
+        let f = Radial {
+            cyl,
+            o,
+            d,
+            radius: 1.0,
+        };
+        let opts = cyl.radial_options(d, 1.0);
+        let FirstCells { cells, guesses } = first_cells(&f, a, b, &opts);
+        if self.cells.remaining_capacity() < cells.len() {
+            isolate_into(cyl, (o, d), &cells, guesses, out);
+            return;
+        }
+        // One model of w over the range bounds it on each cell.
+        let (shift, model) = cyl.plane_w_model(o, d, a, b);
+        let m = 0.5 * (a + b);
+        let speed = cyl
+            .axis
+            .hodograph()
+            .iter()
+            .fold(0.0f64, |k, h| k.max(h.length()));
+        for cell in cells {
+            // t = u - m over the cell, rounded outward.
+            let e = model.enclosure_over(Interval::exact(cell.0, cell.1) - Interval::exact(m, m));
+            let (lo, hi) = (shift + e.lo, shift + e.hi);
+            let pad = 1e-9 * speed / d.length() + 1e-12 * lo.abs().max(hi.abs());
+            let w = if lo.is_nan() || hi.is_nan() {
+                [f64::NEG_INFINITY, f64::INFINITY]
+            } else {
+                [lo - pad, hi + pad]
+            };
+            self.cells.push(Deferred { cell, guesses, w });
+        }
+    }
+
+    /// The deferred cells: index, lower and upper bound of `w`, and what each holds.
+    pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, [f64; 2], CellCrossing)> + '_ {
+        (0..self.cells.len()).map(|i| {
+            let (w, holds) = self.cell(i);
+            (i, w, holds)
+        })
+    }
+
+    /// Cell `i`'s bounds of `w`, and what it holds: a crossing whose direction is not known
+    /// where `g` has opposite signs at its ends (an odd number of roots: at least one, where the
+    /// ray passes from inside the section to outside or back), else possibly nothing.
+    pub(crate) fn cell(&self, i: usize) -> ([f64; 2], CellCrossing) {
+        let c = &self.cells[i];
+        let (fa, fb) = (c.cell.2, c.cell.3);
+        let changes = (fa < 0.0 && fb > 0.0) || (fa > 0.0 && fb < 0.0);
+        let holds = if changes {
+            CellCrossing::Either
+        } else {
+            CellCrossing::Unsure
+        };
+        (c.w, holds)
+    }
+
+    /// Isolates cell `i` into `out` (as an eager isolation would have given its roots).
+    pub(crate) fn isolate<C: CrossSection, S: SweepRule>(
+        &self,
+        i: usize,
+        cyl: &GeneralizedCylinder<C, S>,
+        (o, d): (DVec3, DVec3),
+        out: &mut SideRoots,
+    ) {
+        let c = &self.cells[i];
+        isolate_into(cyl, (o, d), &[c.cell], c.guesses, out);
+    }
+}
+
+/// The roots of [`Radial`] (`R = 1`) in `cells`, polished into `out`.
+fn isolate_into<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (o, d): (DVec3, DVec3),
+    cells: &[Cell],
+    guesses: [f64; 2],
+    out: &mut SideRoots,
+) {
+    let f = Radial {
+        cyl,
+        o,
+        d,
+        radius: 1.0,
+    };
+    let opts: IsolateOptions = cyl.radial_options(d, 1.0);
+    let mut us: ArrayVec<f64, MAX_ROOTS> = ArrayVec::new();
+    isolate_in_cells(&f, cells, guesses, &opts, &mut us);
+    for u in us {
+        cyl.push_circle_root(o, d, u, out);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cylinder::FiberSpec;
+    use crate::intersect::{U_MARGIN, prefilter, widen};
+    use crate::test_rng::Lcg as Rng;
+
+    /// Every deferred cell's bounds of `w` hold `w(u) = a'.(a - o)/(a'.d)` at points across
+    /// the cell (plain `f64` evaluations, apart from the Taylor model that bounds it) and the
+    /// `w` of each root isolated in it; a cell said to hold a crossing holds an odd number of
+    /// roots; and the cells' roots, isolated one by one, are the eager isolation's to the bit.
+    /// Elliptical fibers, twisted and tapering, on curved axes (Frenet and projected frames),
+    /// major radii from 1e-6 to 1e-1 of the length, every fifth at 1e4 from the origin; rays
+    /// at angles to the axis from 1e-3 off perpendicular (the Radial method's limit) to along
+    /// it, log-uniform, passing the axis at grazing depths down to 1e-9 of the radius, some
+    /// starting on the surface.
+    #[test]
+    fn cells_bound_w_and_hold_the_eager_roots() {
+        let mut rng = Rng(83);
+        let (mut cells_checked, mut roots_checked, mut crossings) = (0, 0, 0);
+        for case in 0..3000 {
+            let offset = if case % 5 == 0 {
+                DVec3::splat(1e4)
+            } else {
+                DVec3::ZERO
+            };
+            let bezier: [DVec3; 4] = std::array::from_fn(|j| {
+                offset + DVec3::new(j as f64 / 3.0, rng.range(-0.3, 0.3), rng.range(-0.3, 0.3))
+            });
+            let r = 10f64.powf(rng.range(-6.0, -1.0));
+            let k = rng.range(0.2, 0.9);
+            let taper = rng.range(0.5, 2.0);
+            let spec = FiberSpec {
+                bezier,
+                major_radius: [r, r * taper],
+                minor_radius: [k * r, k * r * taper],
+                rotation: [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)],
+                caps: true,
+                normal_hint: (case % 2 == 0).then(|| rng.unit()),
+                section: Default::default(),
+            };
+            let Ok(cyl) = spec.build() else { continue };
+            let axis = crate::curve::CubicBezier::new(bezier);
+            let u = rng.range(0.02, 0.98);
+            let t = axis.d1(u).normalize();
+            let across = (rng.unit() - t * rng.unit().dot(t)).normalize();
+            // cos of the angle to the axis: 1e-3 to 1, log-uniform.
+            let c = 10f64.powf(rng.range(-3.0, 0.0));
+            let side = rng.unit().cross(t).normalize();
+            let d = (c * t + (1.0 - c * c).sqrt() * side).normalize();
+            let d = if case % 3 == 0 { -d } else { d };
+            // Passing the axis at 1 - 1e-9 .. 0 of the major or the minor radius.
+            let depth = 1.0 - 10f64.powf(rng.range(-9.0, 0.0));
+            let reach = if case % 2 == 0 { r } else { k * r };
+            let target = axis.point(u) + depth * reach * across;
+            let o = if case % 4 == 0 {
+                cyl.surface_point(u, rng.range(0.0, std::f64::consts::TAU))
+            } else {
+                target - 2.0 * r * d / c.max(1e-2)
+            };
+            // The local ray, as `each_hit` makes it.
+            let o = o - cyl.origin;
+            let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
+            for (a, b) in prefilter::candidate_ranges(&cyl, o, d, false) {
+                let (a, b) = widen(a, b, lo, hi);
+                if !cyl.oblique(d, a, b) {
+                    continue;
+                }
+                let mut cells = RadialCells::new();
+                let mut eager = SideRoots::new();
+                cells.add(&cyl, (o, d), (a, b), &mut eager);
+                assert!(eager.is_empty(), "case {case}: room for the cells");
+                let mut lazy = Vec::new();
+                for i in 0..cells.cells.len() {
+                    let ([w0, w1], holds) = cells.cell(i);
+                    let (ca, cb, _, _) = cells.cells[i].cell;
+                    for j in 0..=32 {
+                        let x = ca + (cb - ca) * j as f64 / 32.0;
+                        let w = cyl.plane_w_r(o, d, x);
+                        assert!(
+                            w0 <= w && w <= w1,
+                            "case {case}: w({x}) = {w} outside [{w0}, {w1}]"
+                        );
+                    }
+                    let mut out = SideRoots::new();
+                    cells.isolate(i, &cyl, (o, d), &mut out);
+                    for root in &out {
+                        assert!(
+                            w0 <= root.w && root.w <= w1,
+                            "case {case}: root at w = {} outside [{w0}, {w1}]",
+                            root.w
+                        );
+                    }
+                    if holds == CellCrossing::Either {
+                        assert!(out.len() % 2 == 1, "case {case}: {} roots", out.len());
+                        crossings += 1;
+                    }
+                    roots_checked += out.len();
+                    lazy.extend(out.iter().map(|r| r.u));
+                    cells_checked += 1;
+                }
+                let mut want = SideRoots::new();
+                for u in cyl.radial_roots_between(o, d, 1.0, a, b) {
+                    cyl.push_circle_root(o, d, u, &mut want);
+                }
+                let want: Vec<f64> = want.iter().map(|r| r.u).collect();
+                assert_eq!(lazy, want, "case {case}: cell by cell against at once");
+            }
+        }
+        assert!(
+            cells_checked > 2500 && roots_checked > 3500 && crossings > 600,
+            "{cells_checked} cells, {roots_checked} roots, {crossings} certain crossings"
+        );
+    }
+}
