@@ -767,6 +767,24 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         (e.scaled(q) - V3::cst(d).scaled(m), q)
     }
 
+    /// [`Self::axis_jet_r`] with `p` the ray's point `o + w d` in the normal plane at `u`'s
+    /// representative value, `w` = [`Self::plane_w_r`] there (`o` where that is not finite). For
+    /// point types `a` and `a'` at `u` are computed once, for `w` and for the jet (their values
+    /// are `f64`'s to the bit).
+    #[inline(always)]
+    pub(crate) fn axis_jet_near_r<T: Real>(&self, u: T, o: DVec3, d: DVec3) -> [V3<T>; 3] {
+        let near = |w: f64| if w.is_finite() { o + w * d } else { o };
+        if T::ENCLOSURE {
+            return self.axis_jet_r(u, near(self.plane_w_r(o, d, u.value())));
+        }
+        let (a, d1) = (self.axis.point_r(u), self.axis.d1_r(u));
+        // plane_w_r's expression over the values.
+        let (av, d1v) = (a.value(), d1.value());
+        let (av, d1v) = (V3::new(av.x, av.y, av.z), V3::new(d1v.x, d1v.y, d1v.z));
+        let w = d1v.dot(av - V3::cst(o)) / d1v.dot_cst(d);
+        [a - V3::cst(near(w)), d1, self.axis.d2_r(u)]
+    }
+
     /// `(a(u) - p, a'(u), a''(u))`.
     ///
     /// For enclosure types they are the Taylor polynomials about `m = u.value()` in
@@ -825,9 +843,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// strand ends) it goes through [`frame_r`], which takes the frame nearby.
     #[inline(always)]
     pub(crate) fn radial_g_r<T: Real>(&self, o: DVec3, d: DVec3, u: T, radius: f64) -> T {
-        let shift = self.plane_w_r(o, d, u.value());
-        let o = if shift.is_finite() { o + shift * d } else { o };
-        let [ao, d1, d2] = self.axis_jet_r(u, o);
+        let [ao, d1, d2] = self.axis_jet_near_r(u, o, d);
         let e = V3::new(-ao.x, -ao.y, -ao.z);
         let q = d1.dot_cst(d);
         let m = d1.dot(e);
@@ -1025,6 +1041,38 @@ mod tests {
         assert_eq!(size_of::<Section>(), 8, "a profile is one shared pointer");
         assert_eq!(size_of::<Framing>(), 32, "a fixed frame is boxed");
         assert_eq!(size_of::<GeneralizedCylinder>(), 224, "cylinder layout");
+    }
+
+    /// For point types `axis_jet_near_r` gives `axis_jet_r` about the ray's point in the
+    /// normal plane at `u`, [`GeneralizedCylinder::plane_w_r`]'s, to the bit (values and
+    /// derivatives), though it computes `a` and `a'` once: curved axes built at 1 and at 1e4
+    /// from the origin, rays from near and far, `u` across and just outside `[0, 1]`.
+    #[test]
+    fn near_jet_is_the_jet_about_the_plane_point_to_the_bit() {
+        let mut rng = crate::test_rng::Lcg(89);
+        for case in 0..2000 {
+            let far = if case % 2 == 0 { 1e4 } else { 1.0 };
+            let spec = FiberSpec::round(
+                std::array::from_fn(|_| DVec3::splat(far) + rng.unit() * rng.range(0.1, 1.0)),
+                1e-3,
+            );
+            let Ok(c) = spec.build() else { continue };
+            let o = rng.unit() * rng.range(0.0, 10.0);
+            let d = rng.unit() * rng.range(0.1, 10.0);
+            let u = rng.range(-1e-9, 1.0 + 1e-9);
+            let w = c.plane_w_r(o, d, u);
+            let p = if w.is_finite() { o + w * d } else { o };
+            let bits = |v: V3<f64>| [v.x, v.y, v.z].map(f64::to_bits);
+            let (got, want) = (c.axis_jet_near_r(u, o, d), c.axis_jet_r(u, p));
+            assert_eq!(got.map(bits), want.map(bits), "case {case}: f64");
+            let dual_bits =
+                |v: V3<Dual<f64>>| [v.x, v.y, v.z].map(|x| [x.v.to_bits(), x.d.to_bits()]);
+            let (got, want) = (
+                c.axis_jet_near_r(Dual::var(u), o, d),
+                c.axis_jet_r(Dual::var(u), p),
+            );
+            assert_eq!(got.map(dual_bits), want.map(dual_bits), "case {case}: dual");
+        }
     }
 
     /// The box computed on demand holds the solid: side points at every `(u, v)` of a grid
