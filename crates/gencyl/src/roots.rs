@@ -99,7 +99,7 @@ impl Default for IsolateOptions {
 /// work), which is the pair's value part to the bit: where it excludes zero the cell is done,
 /// as the pair would have decided. Where neither decides such a cell and the model of `f'`
 /// puts a critical point inside, `f` there (enclosed) and that model bound `f` over the cell
-/// to higher order than the value model ([`slope_bound`]): a ray passing a fiber at a graze
+/// to higher order than the value model (`slope_bound`): a ray passing a fiber at a graze
 /// is ruled out before the cell is split.
 ///
 /// Returns whether the evaluation budget sufficed.
