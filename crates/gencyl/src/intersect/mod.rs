@@ -214,7 +214,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         method: Method,
         out: &mut Vec<Hit>,
     ) {
-        self.each_hit(ray, tmin, tmax, method, false, false, |h| {
+        // Every hit is taken: no cell is left for later.
+        self.each_hit(ray, tmin, tmax, method, false, false, false, |h| {
             out.push(*h);
             false
         });
@@ -266,7 +267,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// [`Self::intersect_first_entering_with`]).
     pub fn any_hit(&self, ray: &Ray, tmin: f64, tmax: f64, entering: bool) -> bool {
         let mut found = false;
-        let certain = self.each_hit(ray, tmin, tmax, Method::Auto, entering, true, |h| {
+        let certain = self.each_hit(ray, tmin, tmax, Method::Auto, entering, true, true, |h| {
             found = !entering || h.normal.dot(ray.dir) <= 0.0;
             found
         });
@@ -285,7 +286,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         mut accept: impl FnMut(&Hit) -> bool,
     ) -> Option<Hit> {
         let mut first = None;
-        self.each_hit(ray, tmin, tmax, method, entering, false, |h| {
+        self.each_hit(ray, tmin, tmax, method, entering, false, true, |h| {
             let take = (!entering || h.normal.dot(ray.dir) <= 0.0) && accept(h);
             if take {
                 first = Some(*h);
@@ -302,7 +303,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// Round method's unpolished exits are dropped ([`Self::intersect_first_entering_with`]).
     /// With `certain_stops`, a root cell within the range holding a crossing that `each` would
     /// take (any crossing, or an entry with `skip_exits`) ends the walk unpolished, and the
-    /// answer is `true` ([`Self::any_hit`]); otherwise the answer is `false`.
+    /// answer is `true` ([`Self::any_hit`]); otherwise the answer is `false`. With `lazy` the
+    /// Radial method leaves its cells for the walk to reach ([`radial_cells`]); a caller that
+    /// takes every hit gains nothing by their bounds and passes `false`.
     #[allow(clippy::too_many_arguments)]
     fn each_hit(
         &self,
@@ -312,6 +315,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         method: Method,
         skip_exits: bool,
         certain_stops: bool,
+        lazy: bool,
         mut each: impl FnMut(&Hit) -> bool,
     ) -> bool {
         let d = ray.dir;
@@ -344,7 +348,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             method,
             entries_after,
             &mut roots,
-            (&mut deferred, Some(&mut radial_cells)),
+            (&mut deferred, lazy.then_some(&mut radial_cells)),
         );
         let mut found: ArrayVec<Crossing, MAX_CROSSINGS> = ArrayVec::new();
         let side = |r: &SideRoot| {
