@@ -113,14 +113,21 @@ struct Crossing {
 }
 
 /// A side root still without its section angle (for the Round method) and normal, a finished
-/// hit, a Round method's root cell not yet polished, or a Radial method's cell not yet
-/// isolated (for cells, `t` is a lower bound).
+/// hit, or a cell left for later (its `t` a lower bound).
 #[derive(Clone, Copy, Debug)]
 enum Pending {
     Side(SideRoot),
     Done(Hit),
-    Cell(usize),
-    RadialCell(usize),
+    Cell(CellRef),
+}
+
+/// A cell left for later: a Round method's root cell, polished when reached
+/// ([`round::Deferred`]), or a Radial method's cell, isolated when reached
+/// ([`radial_cells::RadialCells`]).
+#[derive(Clone, Copy, Debug)]
+enum CellRef {
+    Round(usize),
+    Radial(usize),
 }
 
 /// `g(u) = q^2 (|phi(u)|^2 - R^2) = |q phi|^2 - R^2 q^2`: negative exactly where the ray's
@@ -380,7 +387,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             if t < tmax && t0 + w_upper > tmin && !(skip_exits && exit) {
                 found.push(Crossing {
                     t,
-                    hit: Pending::Cell(i),
+                    hit: Pending::Cell(CellRef::Round(i)),
                 });
             }
         }
@@ -389,7 +396,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             if t < tmax && t0 + w_upper > tmin {
                 found.push(Crossing {
                     t,
-                    hit: Pending::RadialCell(i),
+                    hit: Pending::Cell(CellRef::Radial(i)),
                 });
             }
         }
@@ -471,33 +478,23 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             let h = match c.hit {
                 Pending::Done(h) => h,
                 Pending::Side(r) => self.finish_side(ray, (o, d), c.t, r, round),
-                Pending::Cell(i) => {
-                    let ([w, w_upper], holds) = deferred.cell(i);
+                Pending::Cell(cell) => {
+                    let ([w, w_upper], holds) = match cell {
+                        CellRef::Round(i) => deferred.cell(i),
+                        CellRef::Radial(i) => radial_cells.cell(i),
+                    };
                     if certain_counts(holds) && t0 + w > tmin && t0 + w_upper < tmax {
                         return true;
                     }
-                    // Reached: polished, and its roots take the cell's place among the rest (no
-                    // nearer than the bound it was sorted by).
+                    // Reached: polished (isolated, a Radial cell), and its roots take the cell's
+                    // place among the rest (no nearer than the bound it was sorted by).
                     next -= 1;
                     found.remove(next);
                     let mut polished = SideRoots::new();
-                    deferred.polish(i, self, d, &mut polished);
-                    for c in polished.iter().filter_map(side) {
-                        let at = next + found[next..].partition_point(|k| k.t <= c.t);
-                        let _ = found.try_insert(at, c);
+                    match cell {
+                        CellRef::Round(i) => deferred.polish(i, self, d, &mut polished),
+                        CellRef::Radial(i) => radial_cells.isolate(i, self, (o, d), &mut polished),
                     }
-                    continue;
-                }
-                Pending::RadialCell(i) => {
-                    // As a Round cell: answered if certain, else isolated in its place.
-                    let ([w, w_upper], holds) = radial_cells.cell(i);
-                    if certain_counts(holds) && t0 + w > tmin && t0 + w_upper < tmax {
-                        return true;
-                    }
-                    next -= 1;
-                    found.remove(next);
-                    let mut polished = SideRoots::new();
-                    radial_cells.isolate(i, self, (o, d), &mut polished);
                     for c in polished.iter().filter_map(side) {
                         let at = next + found[next..].partition_point(|k| k.t <= c.t);
                         let _ = found.try_insert(at, c);
