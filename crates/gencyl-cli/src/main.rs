@@ -459,7 +459,7 @@ fn run(cli: Cli) -> Result<()> {
     let exhausted = gencyl::budget::exhausted_searches();
     if exhausted > 0 {
         warn(format!(
-            "{exhausted} root searches reached their work bound (geometry at the edge of what f64 resolves); their hits come from the bound's fallback and may be incomplete"
+            "{exhausted} root searches reached their work bound (geometry at the edge of what f64 resolves, or more crossings of one segment than a search keeps); their hits come from the bound's fallback and may be incomplete"
         ));
     }
     result

@@ -7,8 +7,10 @@
 //! by sign changes at the ends of its cells (the 1D searches), by the chords of its pieces
 //! (curve-curve), or dropped (2D boxes). The hits of such a search can be incomplete, so each
 //! one is counted here, process-wide, for a program to report ("N searches reached their work
-//! bound"). Geometry within the limits the scene format enforces does not reach them in the
-//! test suite; a count above zero means geometry at the edge of what f64 resolves.
+//! bound"). A count above zero means geometry at the edge of what f64 resolves, or more
+//! crossings in one range than the 1D isolator keeps ([`crate::roots::MAX_ROOTS`]: a fiber
+//! twisted by many turns in one segment, seen along its axis, which the scene format allows);
+//! the test suite reaches a bound only in the test that aims at the latter.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 

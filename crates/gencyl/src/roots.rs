@@ -169,6 +169,8 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
     stack.extend(cells.iter().rev().copied());
     let mut evaluations = 0;
     let mut complete = true;
+    // Whether every root found had room in `out`.
+    let mut room = true;
     while let Some((a, b, fa, fb)) = stack.pop() {
         evaluations += 1;
         if evaluations > opts.max_evaluations {
@@ -178,7 +180,7 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
             }
             complete = false;
             if let Some(r) = bracketed_root(&value, a, b, fa, fb) {
-                push_root(out, r);
+                room &= push_root(out, r);
             }
             continue;
         }
@@ -203,7 +205,7 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
                 .find(|&g| g > a && g < b)
                 .unwrap_or(m - model.c / model.s);
             if let Some(r) = bracketed_root_from(&value, a, b, fa, fb, start) {
-                push_root(out, r);
+                room &= push_root(out, r);
             }
             continue;
         }
@@ -212,7 +214,7 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
         // reaches out to where the linear part of f' outweighs (four times) its remainder.
         let critical = m - slope.c / slope.s;
         // With one sign at both ends and a critical point inside (a ray passing close by a
-        // fiber): the value at it and the model of f' bound f to third order.
+        // fiber): the value at it and the model of f' bound f to fourth order.
         if one_sign && a < critical && critical < b {
             let fy = f.eval(Taylor::var(critical, critical)).enclosure();
             let positive =
@@ -245,11 +247,11 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
         }
         if narrow || stack.len() + 2 > stack.capacity() {
             if let Some(r) = bracketed_root(&value, a, b, fa, fb) {
-                push_root(out, r);
+                room &= push_root(out, r);
             } else if point(m).abs() <= opts.tangent_tolerance
                 && !out.last().is_some_and(|&l| m - l <= 2.0 * opts.min_width)
             {
-                push_root(out, m);
+                room &= push_root(out, m);
             }
             continue;
         }
@@ -257,6 +259,14 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
         // Right half first so the left half is processed first: roots come out ascending.
         stack.push((m, b, fm, fb));
         stack.push((a, m, fa, fm));
+    }
+    if !room {
+        // More roots than `out` holds: those beyond it are lost, and the search is counted
+        // as one that reached its bound.
+        if complete {
+            crate::budget::note_exhausted();
+        }
+        complete = false;
     }
     // Roots from the budget fallback can come out of order.
     out.sort_by(f64::total_cmp);
@@ -270,8 +280,8 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
 /// `(g0 + rho) tau + s tau^2 / 2` for `tau <= 0`. Each quadratic is bounded below by its
 /// vertex value `-(g0 -+ rho)^2 / 2s` where `s > 0`, else (concave) by its values at the
 /// ends; and by `q(0) = 0`. In interval arithmetic. Where `y` is `f`'s critical point
-/// (`g0 ~ 0`) this is about `-rho^2 / 2s`: third order in the width, where the value model's
-/// own bound is second order (a ray that passes a fiber at a graze).
+/// (`g0 ~ 0`) this is about `-rho^2 / 2s`: fourth order in the width (`rho ~ h^2`), where the
+/// value model's own bound is second order (a ray that passes a fiber at a graze).
 fn slope_bound(slope: Taylor, m: f64, y: f64, (a, b): (f64, f64)) -> f64 {
     let i = |x: f64| Interval::exact(x, x);
     let (c, s, rho) = (i(slope.c), i(slope.s), i(slope.rho));
@@ -654,7 +664,7 @@ pub fn isolate_roots_reference<F: Function1D>(
             // Out of budget: fall back to sign changes at the ends for what is left.
             complete = false;
             if let Some(r) = bracketed_root(&value, a, b, fa, fb) {
-                push_root(out, r);
+                let _ = push_root(out, r);
             }
             continue;
         }
@@ -664,18 +674,18 @@ pub fn isolate_roots_reference<F: Function1D>(
         }
         if slope.excludes_zero() {
             if let Some(r) = bracketed_root(&value, a, b, fa, fb) {
-                push_root(out, r);
+                let _ = push_root(out, r);
             }
             continue;
         }
         let m = 0.5 * (a + b);
         if b - a <= opts.min_width || m <= a || m >= b || stack.len() + 2 > stack.capacity() {
             if let Some(r) = bracketed_root(&value, a, b, fa, fb) {
-                push_root(out, r);
+                let _ = push_root(out, r);
             } else if value(m).0.abs() <= opts.tangent_tolerance
                 && !out.last().is_some_and(|&l| m - l <= 2.0 * opts.min_width)
             {
-                push_root(out, m);
+                let _ = push_root(out, m);
             }
             continue;
         }
@@ -719,16 +729,17 @@ fn meet(x: Interval, y: Interval) -> Interval {
     if lo <= hi { Interval::exact(lo, hi) } else { x }
 }
 
-fn push_root(out: &mut ArrayVec<f64, MAX_ROOTS>, r: f64) {
+/// Appends a root, unless it repeats the last one; returns `false` when there was no room for
+/// it (more than [`MAX_ROOTS`] roots: the search is then incomplete).
+fn push_root(out: &mut ArrayVec<f64, MAX_ROOTS>, r: f64) -> bool {
     // A root on a shared end point of two subintervals is found twice.
     if out
         .last()
         .is_some_and(|&l| (r - l).abs() <= 1e-14 * (1.0 + r.abs()))
-        || out.is_full()
     {
-        return;
+        return true;
     }
-    out.push(r);
+    out.try_push(r).is_ok()
 }
 
 /// The root of a continuous `f` in `[a, b]` when `f(a)` and `f(b)` differ in sign (or one is 0),
