@@ -111,7 +111,23 @@ pub fn isolate_roots<F: Function1D>(
     out: &mut ArrayVec<f64, MAX_ROOTS>,
 ) -> bool {
     let first = first_cells(f, lo, hi, opts);
-    isolate_in_cells(f, &first.cells, first.guesses, opts, out)
+    let found = isolate_in_cells(f, &first.cells, first.guesses, opts, out);
+    if found.overflow && found.complete {
+        // More roots than `out` holds: those beyond it are lost, and the search is counted
+        // as one that reached its bound.
+        crate::budget::note_exhausted();
+    }
+    found.complete && !found.overflow
+}
+
+/// What [`isolate_in_cells`] reports besides the roots.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Isolated {
+    /// Whether the evaluation budget sufficed (a search that exhausted it is counted).
+    pub complete: bool,
+    /// Whether a root found had no room left in the output (more than [`MAX_ROOTS`]; those
+    /// beyond are lost, and the caller counts or splits the search).
+    pub overflow: bool,
 }
 
 /// The cells [`isolate_roots`] starts from on `[lo, hi]`, in ascending order: the whole
@@ -151,14 +167,14 @@ pub(crate) struct FirstCells {
 
 /// The roots of `f` in the given cells (ascending and disjoint but for shared ends), ascending,
 /// as [`isolate_roots`] finds them; `guesses` start Newton's method in a cell that holds one
-/// ([`first_cells`]). Returns whether the evaluation budget sufficed.
+/// ([`first_cells`]).
 pub(crate) fn isolate_in_cells<F: Function1D>(
     f: &F,
     cells: &[Cell],
     guesses: [f64; 2],
     opts: &IsolateOptions,
     out: &mut ArrayVec<f64, MAX_ROOTS>,
-) -> bool {
+) -> Isolated {
     let value = |u: f64| {
         let r = f.eval(Dual::var(u));
         (r.v, r.d)
@@ -260,17 +276,12 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
         stack.push((m, b, fm, fb));
         stack.push((a, m, fa, fm));
     }
-    if !room {
-        // More roots than `out` holds: those beyond it are lost, and the search is counted
-        // as one that reached its bound.
-        if complete {
-            crate::budget::note_exhausted();
-        }
-        complete = false;
-    }
     // Roots from the budget fallback can come out of order.
     out.sort_by(f64::total_cmp);
-    complete
+    Isolated {
+        complete,
+        overflow: !room,
+    }
 }
 
 /// A lower bound of `f(x) - f(y)` for `x` in `[a, b]` (holding `y`), from the model

@@ -16,12 +16,14 @@ use super::round::CellCrossing;
 use super::{Radial, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
 use crate::real::Interval;
-use crate::roots::{Cell, FirstCells, IsolateOptions, MAX_ROOTS, first_cells, isolate_in_cells};
+use crate::roots::Function1D;
+use crate::roots::{Cell, FirstCells, first_cells, isolate_in_cells};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
-/// Most cells a [`RadialCells`] keeps (a ray near a fiber usually brings three).
-pub(crate) const MAX_RADIAL_CELLS: usize = 9;
+/// Most cells a [`RadialCells`] keeps (a ray near a fiber usually brings three; a cell with
+/// more roots than one isolation keeps is split in two).
+pub(crate) const MAX_RADIAL_CELLS: usize = 12;
 
 /// A cell of [`Radial`] (`R = 1`) not yet isolated: its ends and values there, the estimates of
 /// roots that start Newton's method in it, and bounds of `w` over it: those of one Taylor model
@@ -43,17 +45,22 @@ struct Deferred {
 /// [`Radial`]'s cells waiting for a query to reach them (see the module docs).
 pub(crate) struct RadialCells {
     cells: ArrayVec<Deferred, MAX_RADIAL_CELLS>,
+    /// Whether cells wait for the walk (a query that may stop early), or are isolated at once
+    /// (every hit wanted: the bounds would save nothing), deferred only where one isolation
+    /// cannot keep all their roots.
+    lazy: bool,
 }
 
 impl RadialCells {
-    pub(crate) fn new() -> Self {
+    pub(crate) fn new(lazy: bool) -> Self {
         RadialCells {
             cells: ArrayVec::new(),
+            lazy,
         }
     }
 
-    /// Defers the cells of `[a, b]`, or isolates them into `out` at once where there is no
-    /// room for them.
+    /// Defers the cells of `[a, b]`, or isolates them into `out` at once where the cells are
+    /// not lazy (and one isolation keeps all their roots) or there is no room for them.
     pub(crate) fn add<C: CrossSection, S: SweepRule>(
         &mut self,
         cyl: &GeneralizedCylinder<C, S>,
@@ -69,30 +76,20 @@ impl RadialCells {
         };
         let opts = cyl.radial_options(d, 1.0);
         let FirstCells { cells, guesses } = first_cells(&f, a, b, &opts);
-        if self.cells.remaining_capacity() < cells.len() {
-            isolate_into(cyl, (o, d), &cells, guesses, out);
-            return;
+        let room = self.cells.remaining_capacity() >= cells.len();
+        if !self.lazy || !room {
+            let mut us = ArrayVec::new();
+            let found = isolate_in_cells(&f, &cells, guesses, &opts, &mut us);
+            if !found.overflow || !room {
+                if found.overflow && found.complete {
+                    crate::budget::note_exhausted();
+                }
+                push_roots(cyl, (o, d), &us, out);
+                return;
+            }
         }
-        // One model of w over the range bounds it on each cell.
-        let (shift, model) = cyl.plane_w_model(o, d, a, b);
-        let m = 0.5 * (a + b);
-        let speed = cyl
-            .axis
-            .hodograph()
-            .iter()
-            .fold(0.0f64, |k, h| k.max(h.length()));
-        for cell in cells {
-            // t = u - m over the cell, rounded outward.
-            let e = model.enclosure_over(Interval::exact(cell.0, cell.1) - Interval::exact(m, m));
-            let (lo, hi) = (shift + e.lo, shift + e.hi);
-            let pad = 1e-9 * speed / d.length() + 1e-12 * lo.abs().max(hi.abs());
-            let w = if lo.is_nan() || hi.is_nan() {
-                [f64::NEG_INFINITY, f64::INFINITY]
-            } else {
-                [lo - pad, hi + pad]
-            };
-            self.cells.push(Deferred { cell, guesses, w });
-        }
+        self.cells
+            .extend(place(cyl, (o, d), (a, b), &cells, guesses));
     }
 
     /// The deferred cells: index, lower and upper bound of `w`, and what each holds.
@@ -118,37 +115,91 @@ impl RadialCells {
         (c.w, holds)
     }
 
-    /// Isolates cell `i` into `out` (as an eager isolation would have given its roots).
+    /// Isolates cell `i` into `out` (as an eager isolation would have given its roots), and
+    /// returns no cells; or, where it holds more roots than one isolation keeps
+    /// ([`crate::roots::MAX_ROOTS`]: a fiber twisted by many turns, seen along its axis), defers its two
+    /// halves instead and returns them, for the walk to reach the nearer first. Where there is
+    /// no room for them the roots kept (the lowest `u`'s) go to `out` and the search is counted
+    /// as one that reached its bound.
     pub(crate) fn isolate<C: CrossSection, S: SweepRule>(
-        &self,
+        &mut self,
         i: usize,
         cyl: &GeneralizedCylinder<C, S>,
         (o, d): (DVec3, DVec3),
         out: &mut SideRoots,
-    ) {
-        let c = &self.cells[i];
-        isolate_into(cyl, (o, d), &[c.cell], c.guesses, out);
+    ) -> ArrayVec<usize, 3> {
+        let c = self.cells[i];
+        let f = Radial {
+            cyl,
+            o,
+            d,
+            radius: 1.0,
+        };
+        let opts = cyl.radial_options(d, 1.0);
+        let mut us = ArrayVec::new();
+        let found = isolate_in_cells(&f, &[c.cell], c.guesses, &opts, &mut us);
+        let (a, b, fa, fb) = c.cell;
+        let mid = 0.5 * (a + b);
+        if found.overflow {
+            if !self.cells.is_full() && a < mid && mid < b {
+                // The first half takes the cell's place (the walk has let go of it).
+                let fm = f.eval(mid);
+                let halves = [(a, mid, fa, fm), (mid, b, fm, fb)];
+                let placed = place(cyl, (o, d), (a, b), &halves, c.guesses);
+                self.cells[i] = placed[0];
+                self.cells.push(placed[1]);
+                return ArrayVec::from_iter([i, self.cells.len() - 1]);
+            }
+            if found.complete {
+                crate::budget::note_exhausted();
+            }
+        }
+        push_roots(cyl, (o, d), &us, out);
+        ArrayVec::new()
     }
 }
 
-/// The roots of [`Radial`] (`R = 1`) in `cells`, polished into `out`.
-fn isolate_into<C: CrossSection, S: SweepRule>(
+/// `cells` (within `[a, b]`) to defer, each with bounds of `w` from one Taylor model of `w`
+/// over `[a, b]`.
+fn place<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     (o, d): (DVec3, DVec3),
+    (a, b): (f64, f64),
     cells: &[Cell],
     guesses: [f64; 2],
+) -> ArrayVec<Deferred, 3> {
+    let (shift, model) = cyl.plane_w_model(o, d, a, b);
+    let m = 0.5 * (a + b);
+    let speed = cyl
+        .axis
+        .hodograph()
+        .iter()
+        .fold(0.0f64, |k, h| k.max(h.length()));
+    cells
+        .iter()
+        .map(|&cell| {
+            // t = u - m over the cell, rounded outward.
+            let e = model.enclosure_over(Interval::exact(cell.0, cell.1) - Interval::exact(m, m));
+            let (lo, hi) = (shift + e.lo, shift + e.hi);
+            let pad = 1e-9 * speed / d.length() + 1e-12 * lo.abs().max(hi.abs());
+            let w = if lo.is_nan() || hi.is_nan() {
+                [f64::NEG_INFINITY, f64::INFINITY]
+            } else {
+                [lo - pad, hi + pad]
+            };
+            Deferred { cell, guesses, w }
+        })
+        .collect()
+}
+
+/// The hits of the roots `us` of [`Radial`] (`R = 1`), polished into `out`.
+fn push_roots<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (o, d): (DVec3, DVec3),
+    us: &[f64],
     out: &mut SideRoots,
 ) {
-    let f = Radial {
-        cyl,
-        o,
-        d,
-        radius: 1.0,
-    };
-    let opts: IsolateOptions = cyl.radial_options(d, 1.0);
-    let mut us: ArrayVec<f64, MAX_ROOTS> = ArrayVec::new();
-    isolate_in_cells(&f, cells, guesses, &opts, &mut us);
-    for u in us {
+    for &u in us {
         cyl.push_circle_root(o, d, u, out);
     }
 }
@@ -221,7 +272,7 @@ mod tests {
                 if !cyl.oblique(d, a, b) {
                     continue;
                 }
-                let mut cells = RadialCells::new();
+                let mut cells = RadialCells::new(true);
                 let mut eager = SideRoots::new();
                 cells.add(&cyl, (o, d), (a, b), &mut eager);
                 assert!(eager.is_empty(), "case {case}: room for the cells");
@@ -238,7 +289,8 @@ mod tests {
                         );
                     }
                     let mut out = SideRoots::new();
-                    cells.isolate(i, &cyl, (o, d), &mut out);
+                    let halves = cells.isolate(i, &cyl, (o, d), &mut out);
+                    assert!(halves.is_empty(), "case {case}: no cell overflows here");
                     for root in &out {
                         assert!(
                             w0 <= root.w && root.w <= w1,
