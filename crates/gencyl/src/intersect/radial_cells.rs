@@ -7,7 +7,10 @@
 //! model over the range, [`GeneralizedCylinder::plane_w_model`]; on these ranges the ray is
 //! [`super::OBLIQUE`], so `a'.d` keeps its sign), and isolated and polished only when a query
 //! reaches its lower bound. A query that takes the nearest hit then pays for one cell's
-//! enclosures and one Newton solve, not three cells and two.
+//! enclosures and one Newton solve, not three cells and two. A cell with more roots than one
+//! isolation keeps (a fiber twisted by many turns, seen along its axis) is split in two when
+//! reached, and the halves wait in turn; a query that takes every hit isolates its cells at
+//! once unless one isolation cannot keep them all.
 
 use arrayvec::ArrayVec;
 use glam::DVec3;
