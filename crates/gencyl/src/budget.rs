@@ -8,9 +8,11 @@
 //! (curve-curve), or dropped (2D boxes). The hits of such a search can be incomplete, so each
 //! one is counted here, process-wide, for a program to report ("N searches reached their work
 //! bound"). A count above zero means geometry at the edge of what f64 resolves, or more
-//! crossings in one range than the 1D isolator keeps ([`crate::roots::MAX_ROOTS`]: a fiber
-//! twisted by many turns in one segment, seen along its axis, which the scene format allows);
-//! the test suite reaches a bound only in the test that aims at the latter.
+//! crossings in one range than the searches keep: the 1D isolator keeps
+//! [`crate::roots::MAX_ROOTS`] roots, which the Radial method extends by splitting its cells
+//! (to about 12 cells of 16 at once; a fiber twisted by many turns in one segment, seen along
+//! its axis, which the scene format allows, can cross a ray more often). Geometry within the
+//! usual twists does not reach them in the test suite.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 

@@ -1566,8 +1566,9 @@ mod tests {
     }
 
     /// More crossings in one range than one 1D isolation keeps ([`MAX_ROOTS`]): fibers twisted
-    /// by 5 to 20 turns in one segment, rays inside them nearly along the axis (in both
-    /// directions), which pass in and out of the turning ellipse up to 41 times. The full
+    /// by 5 to 34 turns in one segment, rays inside them nearly along the axis (in both
+    /// directions) and one from outside through a bent fiber (from the second review), which
+    /// pass in and out of the turning ellipse up to 128 times. The full
     /// list is the brute-force march's every change of [`GeneralizedCylinder::contains`] along
     /// the ray (to 1e-9, the cap included), and the nearest hit its first: a Radial cell with
     /// too many roots is split and its halves deferred, the nearer reached first; no search is
@@ -1576,23 +1577,53 @@ mod tests {
     #[test]
     fn more_crossings_than_one_isolation_keeps() {
         let mut most = 0;
-        for (turns, dir) in [(5.0, 1.0), (20.0, 1.0), (20.0, -1.0), (12.0, -1.0)] {
+        let straight = [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0].map(|x| v3(x, 0.0, 0.0));
+        let inside = |dir: f64| Ray::new(v3(0.5, 0.0, 0.005), v3(dir, 1e-4, 2e-4).normalize());
+        // The review's ray through a bent fiber of 34.3 turns: 128 crossings, more than 12
+        // cells of 16 hold unless finished cells give their slots to new halves.
+        let b = 0.025974475500972507;
+        let bent = [
+            v3(0.0, 0.0, 0.0),
+            v3(1.0 / 3.0, b, 0.0),
+            v3(2.0 / 3.0, -b, 0.3 * b),
+            v3(1.0, 0.0, 0.0),
+        ];
+        let from_outside = Ray::new(
+            v3(
+                -0.06114798244221897,
+                -0.001450562254504549,
+                -0.0021282117890445633,
+            ),
+            v3(
+                0.9999994867494572,
+                0.000995543504821422,
+                0.00018813280477981322,
+            ),
+        );
+        let cases = [
+            (5.0, straight, 0.002, inside(1.0)),
+            (20.0, straight, 0.002, inside(1.0)),
+            (20.0, straight, 0.002, inside(-1.0)),
+            (12.0, straight, 0.002, inside(-1.0)),
+            (34.2886230697168, bent, 0.004310469099937913, from_outside),
+        ];
+        for (turns, bezier, minor, ray) in cases {
+            let dir = ray.dir.x;
             let spec = FiberSpec {
-                bezier: [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0].map(|x| v3(x, 0.0, 0.0)),
+                bezier,
                 major_radius: [0.01; 2],
-                minor_radius: [0.002; 2],
+                minor_radius: [minor; 2],
                 rotation: [0.0, turns * std::f64::consts::TAU],
                 caps: true,
                 normal_hint: Some(v3(0.0, 0.0, 1.0)),
                 section: Section::default(),
             };
             let cyl = spec.build().unwrap();
-            let ray = Ray::new(v3(0.5, 0.0, 0.005), v3(dir, 1e-4, 2e-4).normalize());
-            // The march: every change of inside-ness to t = 0.6 (past the cap), bisected.
+            // The march: every change of inside-ness to t = 1.2 (past the cap), bisected.
             let step = 1e-5;
             let inside = |k: usize| cyl.contains(ray.at(k as f64 * step));
             let mut crossings = Vec::new();
-            for k in 1..60_000 {
+            for k in 1..120_000 {
                 if inside(k) != inside(k - 1) {
                     let (mut lo, mut hi) = ((k - 1) as f64 * step, k as f64 * step);
                     let at_lo = cyl.contains(ray.at(lo));
@@ -1631,7 +1662,7 @@ mod tests {
             );
             most = most.max(got.len());
         }
-        assert!(most > 35, "up to {most} crossings");
+        assert!(most > 120, "up to {most} crossings");
     }
 
     /// Rays in a normal plane of a straight axis: the in-plane quadratic ([`Method::Radial`])

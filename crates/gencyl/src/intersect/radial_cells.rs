@@ -24,8 +24,9 @@ use crate::roots::{Cell, FirstCells, first_cells, isolate_in_cells};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
-/// Most cells a [`RadialCells`] keeps (a ray near a fiber usually brings three; a cell with
-/// more roots than one isolation keeps is split in two).
+/// Most cells a [`RadialCells`] keeps at once (a ray near a fiber usually brings three; a cell
+/// with more roots than one isolation keeps is split in two, into its own slot and a free
+/// one).
 pub(crate) const MAX_RADIAL_CELLS: usize = 12;
 
 /// A cell of [`Radial`] (`R = 1`) not yet isolated: its ends and values there, the estimates of
@@ -52,6 +53,9 @@ pub(crate) struct RadialCells {
     /// (every hit wanted: the bounds would save nothing), deferred only where one isolation
     /// cannot keep all their roots.
     lazy: bool,
+    /// Slots of cells isolated without a split: no pending crossing refers to them any more,
+    /// and a split's second half may take one.
+    free: ArrayVec<usize, MAX_RADIAL_CELLS>,
 }
 
 impl RadialCells {
@@ -59,6 +63,7 @@ impl RadialCells {
         RadialCells {
             cells: ArrayVec::new(),
             lazy,
+            free: ArrayVec::new(),
         }
     }
 
@@ -144,20 +149,32 @@ impl RadialCells {
         let (a, b, fa, fb) = c.cell;
         let mid = 0.5 * (a + b);
         if found.overflow {
-            if !self.cells.is_full() && a < mid && mid < b {
-                // The first half takes the cell's place (the walk has let go of it).
+            let room = !self.cells.is_full() || !self.free.is_empty();
+            if room && a < mid && mid < b {
+                // The first half takes the cell's place (the walk has let go of it), the
+                // second a finished cell's, or a new one.
                 let fm = f.eval(mid);
                 let halves = [(a, mid, fa, fm), (mid, b, fm, fb)];
                 let placed = place(cyl, (o, d), (a, b), &halves, c.guesses);
                 self.cells[i] = placed[0];
-                self.cells.push(placed[1]);
-                return ArrayVec::from_iter([i, self.cells.len() - 1]);
+                let j = match self.free.pop() {
+                    Some(j) => {
+                        self.cells[j] = placed[1];
+                        j
+                    }
+                    None => {
+                        self.cells.push(placed[1]);
+                        self.cells.len() - 1
+                    }
+                };
+                return ArrayVec::from_iter([i, j]);
             }
             if found.complete {
                 crate::budget::note_exhausted();
             }
         }
         push_roots(cyl, (o, d), &us, out);
+        let _ = self.free.try_push(i);
         ArrayVec::new()
     }
 }
