@@ -19,8 +19,7 @@ use super::round::CellCrossing;
 use super::{Radial, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
 use crate::real::Interval;
-use crate::roots::Function1D;
-use crate::roots::{Cell, FirstCells, first_cells, isolate_in_cells};
+use crate::roots::{Cell, FirstCells, Function1D, first_cells, isolate_in_cells};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
@@ -31,7 +30,8 @@ pub(crate) const MAX_RADIAL_CELLS: usize = 12;
 
 /// A cell of [`Radial`] (`R = 1`) not yet isolated: its ends and values there, the estimates of
 /// roots that start Newton's method in it, and bounds of `w` over it: those of one Taylor model
-/// of `w` over the whole range ([`GeneralizedCylinder::plane_w_model`]), padded by
+/// of `w` over the whole range ([`GeneralizedCylinder::plane_w_model`]; over the parent cell
+/// for the halves of a split one), padded by
 /// `1e-9 max|a'| / |d|` and `1e-12 |w|`. The model encloses `w` for the ray through the
 /// rounded shifted origin; what the pad covers is far smaller: that origin's rounding off the
 /// ray (at most `1e3` times its ulp over `|d|`, at the least obliqueness the Radial method
@@ -125,10 +125,10 @@ impl RadialCells {
 
     /// Isolates cell `i` into `out` (as an eager isolation would have given its roots), and
     /// returns no cells; or, where it holds more roots than one isolation keeps
-    /// ([`crate::roots::MAX_ROOTS`]: a fiber twisted by many turns, seen along its axis), defers its two
-    /// halves instead and returns them, for the walk to reach the nearer first. Where there is
-    /// no room for them the roots kept (the lowest `u`'s) go to `out` and the search is counted
-    /// as one that reached its bound.
+    /// ([`crate::roots::MAX_ROOTS`]: a fiber twisted by many turns, seen along its axis),
+    /// defers its two halves instead and returns them, for the walk to reach the nearer first.
+    /// Where there is no room for them the roots kept (the lowest `u`'s) go to `out` and the
+    /// search is counted as one that reached its bound.
     pub(crate) fn isolate<C: CrossSection, S: SweepRule>(
         &mut self,
         i: usize,
