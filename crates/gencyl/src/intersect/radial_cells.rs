@@ -19,7 +19,7 @@ use super::round::CellCrossing;
 use super::{Radial, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
 use crate::real::Interval;
-use crate::roots::{Cell, FirstCells, Function1D, first_cells, isolate_in_cells};
+use crate::roots::{Cell, FirstCells, Function1D, IsolateOptions, first_cells, isolate_in_cells};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
@@ -76,13 +76,7 @@ impl RadialCells {
         (a, b): (f64, f64),
         out: &mut SideRoots,
     ) {
-        let f = Radial {
-            cyl,
-            o,
-            d,
-            radius: 1.0,
-        };
-        let opts = cyl.radial_options(d, 1.0);
+        let (f, opts) = unit_radial(cyl, (o, d));
         let FirstCells { cells, guesses } = first_cells(&f, a, b, &opts);
         let room = self.cells.remaining_capacity() >= cells.len();
         if !self.lazy || !room {
@@ -137,13 +131,7 @@ impl RadialCells {
         out: &mut SideRoots,
     ) -> ArrayVec<usize, 3> {
         let c = self.cells[i];
-        let f = Radial {
-            cyl,
-            o,
-            d,
-            radius: 1.0,
-        };
-        let opts = cyl.radial_options(d, 1.0);
+        let (f, opts) = unit_radial(cyl, (o, d));
         let mut us = ArrayVec::new();
         let found = isolate_in_cells(&f, &[c.cell], c.guesses, &opts, &mut us);
         let (a, b, fa, fb) = c.cell;
@@ -179,6 +167,20 @@ impl RadialCells {
     }
 }
 
+/// [`Radial`] for the unit circle (`R = 1`) and its isolation settings.
+fn unit_radial<'a, C: CrossSection, S: SweepRule>(
+    cyl: &'a GeneralizedCylinder<C, S>,
+    (o, d): (DVec3, DVec3),
+) -> (Radial<'a, C, S>, IsolateOptions) {
+    let f = Radial {
+        cyl,
+        o,
+        d,
+        radius: 1.0,
+    };
+    (f, cyl.radial_options(d, 1.0))
+}
+
 /// `cells` (within `[a, b]`) to defer, each with bounds of `w` from one Taylor model of `w`
 /// over `[a, b]`.
 fn place<C: CrossSection, S: SweepRule>(
@@ -190,18 +192,15 @@ fn place<C: CrossSection, S: SweepRule>(
 ) -> ArrayVec<Deferred, 3> {
     let (shift, model) = cyl.plane_w_model(o, d, a, b);
     let m = 0.5 * (a + b);
-    let speed = cyl
-        .axis
-        .hodograph()
-        .iter()
-        .fold(0.0f64, |k, h| k.max(h.length()));
+    // max|a'| / |d|.
+    let speed = cyl.q_scale(d) / d.length_squared();
     cells
         .iter()
         .map(|&cell| {
             // t = u - m over the cell, rounded outward.
             let e = model.enclosure_over(Interval::exact(cell.0, cell.1) - Interval::exact(m, m));
             let (lo, hi) = (shift + e.lo, shift + e.hi);
-            let pad = 1e-9 * speed / d.length() + 1e-12 * lo.abs().max(hi.abs());
+            let pad = 1e-9 * speed + 1e-12 * lo.abs().max(hi.abs());
             let w = if lo.is_nan() || hi.is_nan() {
                 [f64::NEG_INFINITY, f64::INFINITY]
             } else {
