@@ -888,6 +888,50 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         }
     }
 
+    /// `(lambda q phi, lambda q)` for some `lambda(u) > 0`: homogeneous coordinates of `phi(u)`
+    /// (`phi = X / Q`), from the terms of [`Self::radial_g_r`] without forming unit vectors.
+    /// With `C = a' x r` (projection frame) or `a' x a''` (Frenet's, away from its degenerate
+    /// points), `n.V = |a'| (r.V or a''.V) / |C|` and `b.V = (C.V) / |C|`, so
+    /// `lambda = |C| / lambda0`, where `lambda0` is `|C|` at `u`'s representative value: point
+    /// evaluations get `lambda = 1` (the values of `(q phi, q)`), enclosures a `lambda` near 1.
+    /// A fixed frame, or Frenet's where [`frenet_shift`] moves it, has `lambda = 1`. A function
+    /// homogeneous in `(X, Y, Q)` keeps its sign and its zeros.
+    #[inline(always)]
+    pub(crate) fn homogeneous_phi_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V2<T>, T) {
+        let [ao, d1, d2] = self.axis_jet_near_r(u, o, d);
+        let e = V3::new(-ao.x, -ao.y, -ao.z);
+        let q = d1.dot_cst(d);
+        let m = d1.dot(e);
+        let v = e.scaled(q) - V3::new(m.scale(d.x), m.scale(d.y), m.scale(d.z));
+        let unnormalised = |along: T, c: V3<T>, rule: &S| {
+            let c2 = c.norm2();
+            let inv0 = 1.0 / c2.value().sqrt();
+            let p = rule.inverse(u, V2::new(along.scale(inv0), c.dot(v).scale(inv0)));
+            (p, q * c2.sqrt().scale(inv0))
+        };
+        match &self.framing {
+            Framing::Fixed(f) => (
+                self.sweep
+                    .inverse(u, V2::new(v.dot_cst(f.n), v.dot_cst(f.b))),
+                q,
+            ),
+            Framing::Projected(r) => {
+                let d1 = d1.scale(self.axis.speed_scale());
+                let c = d1.cross_cst(*r);
+                unnormalised(d1.norm2().sqrt() * v.dot_cst(*r), c, &self.sweep)
+            }
+            Framing::Frenet => {
+                if frenet_shift(&self.axis, u.value()) != 0.0 {
+                    let [_, n, b] = frame_r(&self.axis, &self.framing, u);
+                    return (self.sweep.inverse(u, V2::new(n.dot(v), b.dot(v))), q);
+                }
+                let d2 = self.reduced_second_r(u, d2);
+                let c = d1.cross(d2);
+                unnormalised(d1.norm2().sqrt() * d2.dot(v), c, &self.sweep)
+            }
+        }
+    }
+
     /// The frame `(t, n, b)` at `u` from the axis' jet `a'(u)`, `a''(u)` ([`Self::axis_jet_r`]):
     /// projected, `t = a'/|a'|`, `b = (a' x r)/|a' x r|`, `n = b x t`; Frenet,
     /// `t = a'/|a'|`, `b = C/|C|` with `C = a' x a''`, `n = b x t`, through

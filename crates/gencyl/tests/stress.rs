@@ -126,6 +126,10 @@ fn base_fibers() -> Vec<Case> {
     let arr = |p: [[f64; 3]; 4]| p.map(DVec3::from_array);
     let mut trilobal = fiber(curve_3d(), [0.05, 0.05], [0.05, 0.05], [0.0, PI], true);
     trilobal.section = Section::Loop(BezierLoop::new(&trilobal_points()).unwrap());
+    let mut ribbon = fiber(curve_3d(), [0.05, 0.03], [0.05, 0.03], [0.0, 2.0], true);
+    ribbon.section = Section::Loop(BezierLoop::new(&ribbon_points()).unwrap());
+    let mut parabolic = fiber(curve_3d(), [0.05, 0.05], [0.05, 0.05], [0.4, 0.4], true);
+    parabolic.section = Section::Loop(BezierLoop::new(&parabolic_points()).unwrap());
     vec![
         Case {
             name: "straight-uniform",
@@ -167,6 +171,16 @@ fn base_fibers() -> Vec<Case> {
             name: "trilobal",
             spec: trilobal,
             loop_points: Some(trilobal_points()),
+        },
+        Case {
+            name: "ribbon",
+            spec: ribbon,
+            loop_points: Some(ribbon_points()),
+        },
+        Case {
+            name: "parabolic",
+            spec: parabolic,
+            loop_points: Some(parabolic_points()),
         },
     ]
 }

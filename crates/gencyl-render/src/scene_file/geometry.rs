@@ -96,6 +96,7 @@ pub(super) struct RawHair {
     pub(super) ellipticity: Option<Spanned<f64>>,
     pub(super) twist: Option<Spanned<Array<f64, 2>>>,
     pub(super) frame: Option<Spanned<String>>,
+    pub(super) profile: Option<Spanned<Vec<Array<f64, 2>>>>,
     pub(super) material: Option<Spanned<String>>,
     pub(super) transform: Option<Spanned<RawTransform>>,
 }
@@ -605,12 +606,14 @@ pub(super) fn build_hair(h: &RawHair, base: &Path) -> Result<BuiltStrands, Probl
     };
     let (ellipticity, twist) = strand_shape(&h.ellipticity, &h.twist)?;
     let framing = strand_framing(&h.frame)?;
+    let section = section(&h.profile)?;
     let xf = transform(&h.transform)?;
     let shape = StrandShape {
         radius,
         ellipticity,
         twist,
         framing,
+        section,
     };
     hair_cylinders(&base.join(file), file, shape, xf).map_err(|e| (h.file.span(), e))
 }
@@ -622,6 +625,8 @@ pub(super) struct StrandShape {
     pub(super) ellipticity: f64,
     pub(super) twist: [f64; 2],
     pub(super) framing: StrandFraming,
+    /// Every strand's section (a `profile`, or the unit circle).
+    pub(super) section: Section,
 }
 
 /// The cylinders of a hair file's strands (through the file's points), radius from the
@@ -637,6 +642,7 @@ pub(super) fn hair_cylinders(
         ellipticity,
         twist,
         framing,
+        section,
     } = shape;
     let bytes = crate::limits::read_file(path, crate::limits::MAX_HAIR_FILE, "hair file")
         .map_err(|e| format!("cannot read {file}: {e}"))?;
@@ -682,6 +688,7 @@ pub(super) fn hair_cylinders(
             s.radius = s.radius.map(|r| r * xf.scale);
             s.ellipticity = ellipticity;
             s.twist = twist;
+            s.section = section.clone();
             let segments = s
                 .cylinders_with(framing)
                 .map_err(|(seg, e)| format!("{file}: strand {i}, segment {seg}: {e}"))?;
@@ -718,6 +725,7 @@ impl SceneDescription {
             ellipticity: 1.0,
             twist: [0.0, 0.0],
             framing: StrandFraming::default(),
+            section: Section::default(),
         };
         let strands = hair_cylinders(path, &name, shape, Similarity::default())?;
         Ok(Self::from_strands(strands))

@@ -38,7 +38,7 @@ use crate::sweep::SweepRule;
 /// Newton's method near the root. The second is needed because the first is not scale
 /// invariant: where `phi` moves fast in `u` (`|phi'|` near `1e6` close to a nearly planar
 /// axis' inflection) every short piece passes it however much it bends.
-const LINEARITY_EPS: f64 = 1e-6;
+const LINEARITY_EPS: f64 = 1e-3;
 /// Subdivision depth cap: beyond it two pieces are treated as linear (a tangential contact).
 /// Each level halves one piece of the pair (the seed halves both): 48 levels of both.
 const MAX_DEPTH: u32 = 96;
@@ -459,11 +459,14 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     range: (f64, f64),
     valid: (f64, f64),
     found: &mut Found,
+    search: impl Fn(f64) -> bool,
 ) {
-    roots_within(cyl, o, d, range, valid, found, MAX_PAIRS);
+    roots_within(cyl, o, d, range, valid, found, MAX_PAIRS, search);
 }
 
-/// [`roots`] with a work bound of `max_pairs` piece pairs.
+/// [`roots`] with a work bound of `max_pairs` piece pairs, on the monotone pieces of the
+/// section for whose middle `v` `search` holds.
+#[allow(clippy::too_many_arguments)]
 fn roots_within<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
@@ -472,6 +475,7 @@ fn roots_within<C: CrossSection, S: SweepRule>(
     valid: (f64, f64),
     found: &mut Found,
     max_pairs: u32,
+    search: impl Fn(f64) -> bool,
 ) {
     let (lo, hi) = range;
     let scale = cyl.section.bounding_radius();
@@ -510,6 +514,9 @@ fn roots_within<C: CrossSection, S: SweepRule>(
         }
         let mut root = PhiNode::new(a);
         for vw in vb.windows(2) {
+            if !search(0.5 * (vw[0] + vw[1])) {
+                continue;
+            }
             it.piece = (vw[0], vw[1]);
             let b = it.cs.piece(vw[0], vw[1]);
             it.intersect(&mut root, b, 0);
@@ -522,7 +529,7 @@ pub(crate) type Found = ArrayVec<(f64, f64), 64>;
 
 /// Whether `(u, v)` is (to rounding) a root already found: neighbouring leaf pairs converge
 /// to the same root.
-fn is_known(found: &Found, u: f64, v: f64) -> bool {
+pub(crate) fn is_known(found: &Found, u: f64, v: f64) -> bool {
     found.iter().any(|&(ku, kv)| {
         let dv = (kv - v).abs();
         (ku - u).abs() <= 1e-12 * (1.0 + u.abs()) && dv.min(std::f64::consts::TAU - dv) <= 1e-9
@@ -602,9 +609,11 @@ mod tests {
             let o = DVec3::new(-1.0, -0.9 + 0.045 * k as f64, 0.45 + 0.002 * k as f64) - cyl.origin;
             let d = DVec3::new(1.0, 0.013, 0.021);
             let mut full = Found::new();
-            roots(&cyl, o, d, (0.0, 1.0), (0.0, 1.0), &mut full);
+            roots(&cyl, o, d, (0.0, 1.0), (0.0, 1.0), &mut full, |_| true);
             let mut bounded = Found::new();
-            roots_within(&cyl, o, d, (0.0, 1.0), (0.0, 1.0), &mut bounded, 4);
+            roots_within(&cyl, o, d, (0.0, 1.0), (0.0, 1.0), &mut bounded, 4, |_| {
+                true
+            });
             complete += full.len();
             bounded_roots += bounded.len();
             for &(u, v) in &bounded {

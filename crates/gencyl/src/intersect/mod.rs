@@ -23,6 +23,7 @@ mod branches;
 mod curve_curve;
 mod prefilter;
 mod prism;
+mod profile;
 mod radial_cells;
 mod round;
 
@@ -697,8 +698,22 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             ends.push(b);
             for w in ends.windows(2) {
                 let (a, b) = (w[0], w[1]);
-                if b > a && g.eval(0.5 * (a + b)) < 0.0 {
-                    curve_curve::roots(self, o, d, (a, b), (lo, hi), &mut found);
+                if !(b > a && g.eval(0.5 * (a + b)) < 0.0) {
+                    continue;
+                }
+                // Pieces with an implicit equation by one search in `u` each, the rest (and
+                // sections without pieces) by the curve-curve subdivision.
+                let implicit = self.section.implicit_pieces();
+                profile::roots(self, (o, d), (a, b), r, (lo, hi), &mut found);
+                let k = implicit.len() as f64;
+                let unfit = |v: f64| {
+                    let i = ((v / std::f64::consts::TAU * k) as usize).min(implicit.len() - 1);
+                    implicit[i].is_none()
+                };
+                if implicit.is_empty() {
+                    curve_curve::roots(self, o, d, (a, b), (lo, hi), &mut found, |_| true);
+                } else if implicit.iter().any(Option::is_none) {
+                    curve_curve::roots(self, o, d, (a, b), (lo, hi), &mut found, unfit);
                 }
             }
         }

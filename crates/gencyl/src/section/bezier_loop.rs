@@ -4,6 +4,7 @@ use std::sync::Arc;
 use glam::DVec2;
 use polycool::Cubic;
 
+use super::implicit::PieceImplicit;
 use super::{CrossSection, LineCrossings};
 use crate::real::{Real, V2};
 
@@ -20,10 +21,12 @@ use crate::real::{Real, V2};
 #[derive(Clone, Debug, PartialEq)]
 pub struct BezierLoop(Arc<LoopData>);
 
-/// A [`BezierLoop`]'s pieces, orientation (the sign of its area) and bounding radius.
+/// A [`BezierLoop`]'s pieces, their implicit equations, orientation (the sign of its area) and
+/// bounding radius.
 #[derive(Debug, PartialEq)]
 struct LoopData {
     pieces: Vec<[DVec2; 4]>,
+    implicit: Vec<Option<PieceImplicit>>,
     orientation: f64,
     radius: f64,
 }
@@ -77,8 +80,10 @@ impl BezierLoop {
         if !(area.abs() > 1e-12 * radius * radius) {
             return Err(ProfileError::NoArea);
         }
+        let implicit = pieces.iter().map(PieceImplicit::new).collect();
         Ok(BezierLoop(Arc::new(LoopData {
             pieces,
+            implicit,
             orientation: area.signum(),
             radius,
         })))
@@ -91,7 +96,9 @@ impl BezierLoop {
 
     /// Bytes of the shared data (counted once for all clones).
     pub fn storage_bytes(&self) -> usize {
-        size_of::<LoopData>() + size_of_val(self.0.pieces.as_slice())
+        size_of::<LoopData>()
+            + size_of_val(self.0.pieces.as_slice())
+            + size_of_val(self.0.implicit.as_slice())
     }
 
     /// The four-piece cubic approximation of the unit circle (control distance
@@ -109,6 +116,18 @@ impl BezierLoop {
             })
             .collect();
         BezierLoop::new(&pts).expect("the circle approximation is a valid loop")
+    }
+
+    /// The same loop with no piece's implicit equation: the General method then searches every
+    /// piece by the curve-curve subdivision (the tests' second method).
+    #[cfg(test)]
+    pub(crate) fn subdivided_only(&self) -> Self {
+        BezierLoop(Arc::new(LoopData {
+            pieces: self.0.pieces.clone(),
+            implicit: vec![None; self.0.pieces.len()],
+            orientation: self.0.orientation,
+            radius: self.0.radius,
+        }))
     }
 
     /// The cubic pieces.
@@ -149,7 +168,7 @@ fn cross(a: DVec2, b: DVec2) -> f64 {
 }
 
 /// Power-basis coefficients `c0 + c1 s + c2 s^2 + c3 s^3` of a cubic Bezier.
-fn power(p: &[DVec2; 4]) -> [DVec2; 4] {
+pub(super) fn power(p: &[DVec2; 4]) -> [DVec2; 4] {
     [
         p[0],
         3.0 * (p[1] - p[0]),
@@ -299,6 +318,10 @@ impl CrossSection for BezierLoop {
 
     fn orientation(&self) -> f64 {
         self.0.orientation
+    }
+
+    fn implicit_pieces(&self) -> &[Option<PieceImplicit>] {
+        &self.0.implicit
     }
 }
 

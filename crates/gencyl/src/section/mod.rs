@@ -2,10 +2,12 @@
 
 mod bezier_loop;
 mod circle;
+mod implicit;
 
 pub use bezier_loop::{BezierLoop, ProfileError};
 pub use circle::UnitCircle;
 pub(crate) use circle::angle;
+pub use implicit::PieceImplicit;
 
 use arrayvec::ArrayVec;
 use glam::DVec2;
@@ -43,6 +45,12 @@ pub trait CrossSection {
     /// Whether this is the unit circle `(cos v, sin v)`, which admits the radial fast path.
     fn is_unit_circle(&self) -> bool {
         false
+    }
+    /// The implicit equation of each of the section's `k` pieces, piece `i` covering
+    /// `v in [2 pi i / k, 2 pi (i + 1) / k)` (`None` for a piece unfit for it); empty for a
+    /// section without pieces (the circle, which has its own methods).
+    fn implicit_pieces(&self) -> &[Option<PieceImplicit>] {
+        &[]
     }
 }
 
@@ -97,5 +105,8 @@ impl CrossSection for Section {
     }
     fn is_unit_circle(&self) -> bool {
         forward!(self, s => s.is_unit_circle())
+    }
+    fn implicit_pieces(&self) -> &[Option<PieceImplicit>] {
+        forward!(self, s => s.implicit_pieces())
     }
 }

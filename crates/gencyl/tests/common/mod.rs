@@ -1952,6 +1952,41 @@ pub fn curve_3d() -> [DVec3; 4] {
 }
 
 /// Three lobes (tips at radius 1, valleys at 0.5), C1 at the anchors, counter-clockwise.
+/// A flat ribbon (a textile tape): a 2:1 rectangle with corners rounded to 0.3, its straight
+/// sides with uneven inner control points (their equations are lines).
+pub fn ribbon_points() -> Vec<DVec2> {
+    let v = DVec2::new;
+    let k = 0.3 * 4.0 / 3.0 * (2f64.sqrt() - 1.0);
+    let mut pts = Vec::new();
+    for q in 0..4 {
+        let rot = |p: DVec2| match q {
+            0 => p,
+            1 => v(-p.y, p.x),
+            2 => -p,
+            _ => v(p.y, -p.x),
+        };
+        let (a, b) = if q % 2 == 0 { (1.0, 0.5) } else { (0.5, 1.0) };
+        let (s0, s1) = (v(a, -b + 0.3), v(a, b - 0.3));
+        pts.extend([s0, s0.lerp(s1, 0.3), s0.lerp(s1, 0.8)].map(rot));
+        pts.extend([s1, s1 + v(0.0, k), v(a - 0.3 + k, b)].map(rot));
+    }
+    pts
+}
+
+/// An oval of four parabolic arcs (quadratics degree-raised to cubics; their equations are
+/// conics) through `(+-1, 0)` and `(0, +-0.6)`, their middle control points at the corners of
+/// the box, so the tangent is continuous at the anchors.
+pub fn parabolic_points() -> Vec<DVec2> {
+    let v = DVec2::new;
+    let quad = |a: DVec2, q: DVec2, b: DVec2| [a, (a + 2.0 * q) / 3.0, (2.0 * q + b) / 3.0];
+    let (x, y) = (1.0, 0.6);
+    let anchors = [v(x, 0.0), v(0.0, y), v(-x, 0.0), v(0.0, -y)];
+    let corners = [v(x, y), v(-x, y), v(-x, -y), v(x, -y)];
+    (0..4)
+        .flat_map(|i| quad(anchors[i], corners[i], anchors[(i + 1) % 4]))
+        .collect()
+}
+
 pub fn trilobal_points() -> Vec<DVec2> {
     let mut anchors = Vec::new();
     for j in 0..6 {
