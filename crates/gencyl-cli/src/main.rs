@@ -371,12 +371,16 @@ struct BenchArgs {
     /// same rays).
     #[arg(long, default_value = "examples/ponytail-elliptical.toml")]
     ponytail_elliptical: PathBuf,
+    /// The `ponytail-trilobal` scene (the same strands with a three-lobed profile, the General
+    /// method's, timed on the same rays).
+    #[arg(long, default_value = "examples/ponytail-trilobal.toml")]
+    ponytail_trilobal: PathBuf,
     /// Camera rays per scene (a 4:3 image of about this many pixels, one ray each; at most
     /// 2^26, whose rays take 3 GiB).
     #[arg(long, default_value_t = 76_800, value_parser = clap::value_parser!(u32).range(1..=1 << 26))]
     rays: u32,
-    /// Only this scene (`default`, `ponytail`, `ponytail-elliptical`, `generated-1.6M`;
-    /// repeatable).
+    /// Only this scene (`default`, `ponytail`, `ponytail-elliptical`, `ponytail-trilobal`,
+    /// `generated-1.6M`; repeatable).
     #[arg(long = "scene")]
     scenes: Vec<String>,
     /// Only this ray set (`camera` or `incoherent`; repeatable).
@@ -1343,10 +1347,11 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         .map_err(anyhow::Error::msg)?;
     }
     let wanted = |list: &[String], name: &str| list.is_empty() || list.iter().any(|s| s == name);
-    const SCENES: [&str; 4] = [
+    const SCENES: [&str; 5] = [
         "default",
         "ponytail",
         "ponytail-elliptical",
+        "ponytail-trilobal",
         "generated-1.6M",
     ];
     for s in &args.scenes {
@@ -1378,6 +1383,10 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         (
             "ponytail-elliptical",
             Box::new(|| Ok(SceneDescription::load(&args.ponytail_elliptical)?)),
+        ),
+        (
+            "ponytail-trilobal",
+            Box::new(|| Ok(SceneDescription::load(&args.ponytail_trilobal)?)),
         ),
     ];
     if args.large {

@@ -629,12 +629,14 @@ fn bench_scenes() -> [String; 4] {
         example("ponytail.toml"),
         "--ponytail-elliptical".into(),
         example("ponytail-elliptical.toml"),
+        "--ponytail-trilobal".into(),
+        example("ponytail-trilobal.toml"),
     ]
 }
 
 /// `bench` prints one CSV row per scene and thread count, with positive rates. The elliptical
 /// ponytail is timed on the round one's rays: its sections lie inside the round ones, so it
-/// has no more hits.
+/// has no more hits; the trilobal one's lobes reach about as far.
 #[test]
 fn bench_reports_named_scenes() {
     let scenes = bench_scenes();
@@ -677,6 +679,12 @@ fn bench_reports_named_scenes() {
         assert!(
             elliptical <= round && elliptical > 0.5 * round,
             "{kind}: hit fractions {elliptical} (elliptical) against {round}: {out}"
+        );
+        // The lobes reach the round fiber's radius (their control points a little beyond).
+        let trilobal = hits("ponytail-trilobal");
+        assert!(
+            trilobal <= 1.1 * round && trilobal > 0.3 * round,
+            "{kind}: hit fractions {trilobal} (trilobal) against {round}: {out}"
         );
     }
 }

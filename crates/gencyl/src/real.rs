@@ -15,7 +15,8 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// A real scalar: `f64`, a dual number, or an interval.
 pub trait Real:
-    Copy
+    'static
+    + Copy
     + std::fmt::Debug
     + Add<Output = Self>
     + Sub<Output = Self>

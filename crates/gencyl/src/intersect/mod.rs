@@ -701,22 +701,54 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 if !(b > a && g.eval(0.5 * (a + b)) < 0.0) {
                     continue;
                 }
-                // Pieces with an implicit equation by one search in `u` each, the rest (and
-                // sections without pieces) by the curve-curve subdivision.
-                let implicit = self.section.implicit_pieces();
-                profile::roots(self, (o, d), (a, b), r, (lo, hi), &mut found);
-                let k = implicit.len() as f64;
-                let unfit = |v: f64| {
-                    let i = ((v / std::f64::consts::TAU * k) as usize).min(implicit.len() - 1);
-                    implicit[i].is_none()
-                };
-                if implicit.is_empty() {
-                    curve_curve::roots(self, o, d, (a, b), (lo, hi), &mut found, |_| true);
-                } else if implicit.iter().any(Option::is_none) {
-                    curve_curve::roots(self, o, d, (a, b), (lo, hi), &mut found, unfit);
+                // A profile's halves of the range wait for a query to reach them.
+                let profiled = !self.section.implicit_pieces().is_empty();
+                if !profiled {
+                    self.general_window_roots((o, d), (a, b), r, (lo, hi), &mut found);
+                } else if !radial_cells.add_profile(self, (o, d), (a, b), r, (lo, hi)) {
+                    for half in radial_cells::profile_halves(a, b) {
+                        self.general_window_roots((o, d), half, r, (lo, hi), &mut found);
+                    }
                 }
             }
         }
+        self.push_general_roots(o, d, found, out);
+    }
+
+    /// The General method's roots `(u, v)` on `[a, b]`, where `phi` lies in the disc of radius
+    /// `disc`: the pieces with an implicit equation by one search in `u` each ([`profile`]),
+    /// the rest (and sections without pieces) by the curve-curve subdivision; `u` kept in
+    /// `valid`.
+    pub(crate) fn general_window_roots(
+        &self,
+        (o, d): (DVec3, DVec3),
+        (a, b): (f64, f64),
+        disc: f64,
+        valid: (f64, f64),
+        found: &mut curve_curve::Found,
+    ) {
+        let implicit = self.section.implicit_pieces();
+        profile::roots(self, (o, d), (a, b), disc, valid, found);
+        let k = implicit.len() as f64;
+        let unfit = |v: f64| {
+            let i = ((v / std::f64::consts::TAU * k) as usize).min(implicit.len() - 1);
+            implicit[i].is_none()
+        };
+        if implicit.is_empty() {
+            curve_curve::roots(self, o, d, (a, b), valid, found, |_| true);
+        } else if implicit.iter().any(Option::is_none) {
+            curve_curve::roots(self, o, d, (a, b), valid, found, unfit);
+        }
+    }
+
+    /// The General method's roots `found`, each once, as side roots (`w` at `u`) in `out`.
+    pub(crate) fn push_general_roots(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        mut found: curve_curve::Found,
+        out: &mut SideRoots,
+    ) {
         curve_curve::dedupe(&mut found);
         for (u, v) in found {
             let w = self.plane_w_r(o, d, u);
@@ -1360,6 +1392,18 @@ mod tests {
     /// is elliptical (minor radius 0.2 to 0.9 of the major `r`) and twisted, which the Radial
     /// method intersects (leaving cells for later, [`radial_cells`]). Returns the fiber, the
     /// ray and `r`.
+    /// A three-lobed profile of three cubic pieces.
+    fn three_lobes() -> Section {
+        let lobes: Vec<DVec2> = (0..3)
+            .flat_map(|j| {
+                let a = j as f64 * std::f64::consts::TAU / 3.0;
+                let p = |r: f64, da: f64| r * DVec2::from_angle(a + da);
+                [p(1.0, 0.0), p(1.05, 0.35), p(0.55, 0.75)]
+            })
+            .collect();
+        Section::Loop(crate::section::BezierLoop::new(&lobes).unwrap())
+    }
+
     fn fiber_and_ray(rng: &mut Rng, case: usize) -> (Cyl, Ray, f64) {
         let offset = if case.is_multiple_of(5) {
             DVec3::splat(1e4)
@@ -1379,6 +1423,11 @@ mod tests {
         if case % 7 == 3 {
             let k = rng.range(0.2, 0.9);
             spec.minor_radius = spec.major_radius.map(|m| k * m);
+            spec.rotation = [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)];
+        }
+        if case % 7 == 5 {
+            // A three-lobed profile (the General method's pieces, their halves deferred).
+            spec.section = three_lobes();
             spec.rotation = [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)];
         }
         let cyl = spec.build().unwrap();
@@ -1533,6 +1582,11 @@ mod tests {
                 // Elliptical and twisted: the Radial method's cells.
                 let k = rng.range(0.2, 0.9);
                 spec.minor_radius = spec.major_radius.map(|m| k * m);
+                spec.rotation = [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)];
+            }
+            if case % 4 == 1 {
+                // Profiled and twisted: the General method's deferred halves.
+                spec.section = three_lobes();
                 spec.rotation = [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)];
             }
             let cyl = spec.build().unwrap();

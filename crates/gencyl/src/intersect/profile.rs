@@ -18,13 +18,16 @@
 //! The frame may turn by a half turn where the Frenet frame switches: the search is split there,
 //! as the subdivision's is (a piece's `F` is not symmetric under `phi -> -phi`).
 
+use std::any::Any;
+use std::cell::OnceCell;
+
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use super::curve_curve::{Found, is_known};
 use crate::cylinder::GeneralizedCylinder;
 use crate::frame::Framing;
-use crate::real::{Dual, Real, Taylor};
+use crate::real::{Dual, Real, Taylor, V2};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots};
 use crate::section::{CrossSection, PieceImplicit};
 use crate::sweep::SweepRule;
@@ -32,9 +35,7 @@ use crate::sweep::SweepRule;
 /// `H(u)` of one piece (module docs), divided by the cube of a bound of its arguments' size
 /// ([`PieceImplicit::homogeneous`]).
 struct PieceAlongRay<'a, C, S> {
-    cyl: &'a GeneralizedCylinder<C, S>,
-    o: DVec3,
-    d: DVec3,
+    phi: &'a SharedPhi<'a, C, S>,
     piece: &'a PieceImplicit,
     bound: f64,
 }
@@ -42,8 +43,65 @@ struct PieceAlongRay<'a, C, S> {
 impl<C: CrossSection, S: SweepRule> Function1D for PieceAlongRay<'_, C, S> {
     #[inline]
     fn eval<T: Real>(&self, u: T) -> T {
-        let (x, q) = self.cyl.homogeneous_phi_r(self.o, self.d, u);
+        let (x, q) = self.phi.at(u);
         self.piece.homogeneous(x.x, x.y, q, self.bound)
+    }
+}
+
+/// Homogeneous `phi` ([`GeneralizedCylinder::homogeneous_phi_r`]) for the searches of every
+/// piece on one stretch `[a, b]`, each of which begins with the same evaluations: the values at
+/// `a` and `b` and the models over `[a, b]` (of `phi` alone, and with its derivative). Those
+/// are computed once, on first use, and shared.
+struct SharedPhi<'a, C, S> {
+    cyl: &'a GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+    range: (f64, f64),
+    ends: [OnceCell<(V2<f64>, f64)>; 2],
+    value: OnceCell<(V2<Taylor>, Taylor)>,
+    pair: OnceCell<(V2<Dual<Taylor>>, Dual<Taylor>)>,
+}
+
+impl<'a, C: CrossSection, S: SweepRule> SharedPhi<'a, C, S> {
+    fn new(cyl: &'a GeneralizedCylinder<C, S>, (o, d): (DVec3, DVec3), range: (f64, f64)) -> Self {
+        SharedPhi {
+            cyl,
+            o,
+            d,
+            range,
+            ends: Default::default(),
+            value: OnceCell::new(),
+            pair: OnceCell::new(),
+        }
+    }
+
+    fn at<T: Real>(&self, u: T) -> (V2<T>, T) {
+        let eval = |u: T| self.cyl.homogeneous_phi_r(self.o, self.d, u);
+        let any = &u as &dyn Any;
+        let whole = |t: &Taylor| *t == Taylor::var(self.range.0, self.range.1);
+        let shared: Option<&dyn Any> = if let Some(&x) = any.downcast_ref::<f64>() {
+            let end = [self.range.0, self.range.1].iter().position(|&e| e == x);
+            end.map(|i| {
+                self.ends[i].get_or_init(|| self.cyl.homogeneous_phi_r(self.o, self.d, x))
+                    as &dyn Any
+            })
+        } else if let Some(t) = any.downcast_ref::<Taylor>().filter(|t| whole(t)) {
+            Some(
+                self.value
+                    .get_or_init(|| self.cyl.homogeneous_phi_r(self.o, self.d, *t)),
+            )
+        } else if let Some(t) = any.downcast_ref::<Dual<Taylor>>().filter(|t| whole(&t.v)) {
+            Some(
+                self.pair
+                    .get_or_init(|| self.cyl.homogeneous_phi_r(self.o, self.d, *t)),
+            )
+        } else {
+            None
+        };
+        match shared.and_then(|s| s.downcast_ref::<(V2<T>, T)>()) {
+            Some(&r) => r,
+            None => eval(u),
+        }
     }
 }
 
@@ -71,17 +129,14 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let pieces = cyl.section.implicit_pieces();
     let k = pieces.len() as f64;
     let qs = cyl.q_scale(d);
+    let shared: ArrayVec<SharedPhi<C, S>, 9> = stretches
+        .iter()
+        .map(|&r| SharedPhi::new(cyl, (o, d), r))
+        .collect();
     for (i, piece) in pieces.iter().enumerate() {
         let Some(piece) = piece else { continue };
         // |Q| <= qs, and |X_local|, |Y_local| <= |Q| |xi|.
         let bound = piece.local_bound(disc).max(1.0);
-        let f = PieceAlongRay {
-            cyl,
-            o,
-            d,
-            piece,
-            bound: qs * bound,
-        };
         // A ray that passes within about 1e-9 of the section's size of the piece touches it
         // (the tolerance in `H` holds for `q` near its bound; where `q` is smaller it admits
         // more, and the distance test below decides).
@@ -91,10 +146,15 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         };
         // A root's point is on the piece to rounding, a touch's within the tangent tolerance.
         let near = piece.local_length(5e-10 * disc);
-        for &(a, b) in &stretches {
+        for (&(a, b), phi) in stretches.iter().zip(&shared) {
             if !(a < b) {
                 continue;
             }
+            let f = PieceAlongRay {
+                phi,
+                piece,
+                bound: qs * bound,
+            };
             let mut us: ArrayVec<f64, MAX_ROOTS> = ArrayVec::new();
             isolate_roots(&f, a, b, &opts, &mut us);
             for u in us {

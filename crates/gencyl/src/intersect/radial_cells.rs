@@ -15,6 +15,7 @@
 use arrayvec::ArrayVec;
 use glam::DVec3;
 
+use super::curve_curve::Found;
 use super::round::CellCrossing;
 use super::{Radial, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
@@ -41,9 +42,24 @@ pub(crate) const MAX_RADIAL_CELLS: usize = 12;
 /// its cell's bounds (20,000 fibers, radii to 30 times the length).
 #[derive(Clone, Copy, Debug)]
 struct Deferred {
-    cell: Cell,
-    guesses: [f64; 2],
+    work: Work,
     w: [f64; 2],
+}
+
+/// What a deferred cell holds.
+#[derive(Clone, Copy, Debug)]
+enum Work {
+    /// A cell of [`Radial`] (`R = 1`), with the estimates of roots that start Newton's method
+    /// in it.
+    Radial { cell: Cell, guesses: [f64; 2] },
+    /// Half of a range of the General method's where `phi` lies in the section's bounding
+    /// disc of radius `disc` ([`GeneralizedCylinder::general_window_roots`]): every piece of the
+    /// section is searched on it when it is reached, roots `u` kept in `valid`.
+    Profile {
+        range: (f64, f64),
+        disc: f64,
+        valid: (f64, f64),
+    },
 }
 
 /// [`Radial`]'s cells waiting for a query to reach them (see the module docs).
@@ -102,17 +118,55 @@ impl RadialCells {
         })
     }
 
-    /// Cell `i`'s bounds of `w`, and what it holds: a crossing whose direction is not known
-    /// where `g` has opposite signs at its ends (an odd number of roots: at least one, where the
-    /// ray passes from inside the section to outside or back), else possibly nothing.
+    /// Defers the General method's range `[a, b]` (where `phi` lies in the disc of radius
+    /// `disc`) as two halves, each placed by bounds of `w` over it, and returns true; false
+    /// (nothing deferred) where the cells are not lazy or there is no room for two. A query for
+    /// the nearest hit then usually searches the half that holds the entry and stops.
+    pub(crate) fn add_profile<C: CrossSection, S: SweepRule>(
+        &mut self,
+        cyl: &GeneralizedCylinder<C, S>,
+        (o, d): (DVec3, DVec3),
+        (a, b): (f64, f64),
+        disc: f64,
+        valid: (f64, f64),
+    ) -> bool {
+        let halves = profile_halves(a, b);
+        if !self.lazy || self.cells.remaining_capacity() < halves.len() {
+            return false;
+        }
+        // Roots of the subdivision's pieces may converge just outside a half: its bounds are
+        // taken over the half grown by a hundredth of the range at each end.
+        let grow = 0.01 * (b - a);
+        let spans: ArrayVec<(f64, f64), 2> = halves
+            .iter()
+            .map(|&(x, y)| ((x - grow).max(a), (y + grow).min(b)))
+            .collect();
+        for (&range, w) in halves.iter().zip(w_bounds(cyl, (o, d), (a, b), &spans)) {
+            self.cells.push(Deferred {
+                work: Work::Profile { range, disc, valid },
+                w,
+            });
+        }
+        true
+    }
+
+    /// Cell `i`'s bounds of `w`, and what it holds: for a Radial cell, a crossing whose
+    /// direction is not known where `g` has opposite signs at its ends (an odd number of roots:
+    /// at least one, where the ray passes from inside the section to outside or back), else
+    /// possibly nothing.
     pub(crate) fn cell(&self, i: usize) -> ([f64; 2], CellCrossing) {
         let c = &self.cells[i];
-        let (fa, fb) = (c.cell.2, c.cell.3);
-        let changes = (fa < 0.0 && fb > 0.0) || (fa > 0.0 && fb < 0.0);
-        let holds = if changes {
-            CellCrossing::Either
-        } else {
-            CellCrossing::Unsure
+        let holds = match c.work {
+            Work::Radial { cell, .. } => {
+                let (fa, fb) = (cell.2, cell.3);
+                let changes = (fa < 0.0 && fb > 0.0) || (fa > 0.0 && fb < 0.0);
+                if changes {
+                    CellCrossing::Either
+                } else {
+                    CellCrossing::Unsure
+                }
+            }
+            Work::Profile { .. } => CellCrossing::Unsure,
         };
         (c.w, holds)
     }
@@ -130,11 +184,20 @@ impl RadialCells {
         (o, d): (DVec3, DVec3),
         out: &mut SideRoots,
     ) -> ArrayVec<usize, 3> {
-        let c = self.cells[i];
+        let (cell, guesses) = match self.cells[i].work {
+            Work::Radial { cell, guesses } => (cell, guesses),
+            Work::Profile { range, disc, valid } => {
+                let mut found = Found::new();
+                cyl.general_window_roots((o, d), range, disc, valid, &mut found);
+                cyl.push_general_roots(o, d, found, out);
+                let _ = self.free.try_push(i);
+                return ArrayVec::new();
+            }
+        };
         let (f, opts) = unit_radial(cyl, (o, d));
         let mut us = ArrayVec::new();
-        let found = isolate_in_cells(&f, &[c.cell], c.guesses, &opts, &mut us);
-        let (a, b, fa, fb) = c.cell;
+        let found = isolate_in_cells(&f, &[cell], guesses, &opts, &mut us);
+        let (a, b, fa, fb) = cell;
         let mid = 0.5 * (a + b);
         if found.overflow {
             let room = !self.cells.is_full() || !self.free.is_empty();
@@ -143,7 +206,7 @@ impl RadialCells {
                 // second a finished cell's, or a new one.
                 let fm = f.eval(mid);
                 let halves = [(a, mid, fa, fm), (mid, b, fm, fb)];
-                let placed = place(cyl, (o, d), (a, b), &halves, c.guesses);
+                let placed = place(cyl, (o, d), (a, b), &halves, guesses);
                 self.cells[i] = placed[0];
                 let j = match self.free.pop() {
                     Some(j) => {
@@ -167,6 +230,19 @@ impl RadialCells {
     }
 }
 
+/// The halves of the General method's range `[a, b]` that [`RadialCells::add_profile`]
+/// defers, and that a query for every hit searches in turn (the same searches, so the roots
+/// are the same to the bit): `[a, m]` and `[m, b]` at the midpoint, or `[a, b]` where that has
+/// no float inside.
+pub(crate) fn profile_halves(a: f64, b: f64) -> ArrayVec<(f64, f64), 2> {
+    let m = 0.5 * (a + b);
+    if a < m && m < b {
+        ArrayVec::from([(a, m), (m, b)])
+    } else {
+        ArrayVec::from_iter([(a, b)])
+    }
+}
+
 /// [`Radial`] for the unit circle (`R = 1`) and its isolation settings.
 fn unit_radial<'a, C: CrossSection, S: SweepRule>(
     cyl: &'a GeneralizedCylinder<C, S>,
@@ -181,8 +257,7 @@ fn unit_radial<'a, C: CrossSection, S: SweepRule>(
     (f, cyl.radial_options(d, 1.0))
 }
 
-/// `cells` (within `[a, b]`) to defer, each with bounds of `w` from one Taylor model of `w`
-/// over `[a, b]`.
+/// `cells` (within `[a, b]`) to defer, each with bounds of `w` ([`w_bounds`]).
 fn place<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     (o, d): (DVec3, DVec3),
@@ -190,23 +265,41 @@ fn place<C: CrossSection, S: SweepRule>(
     cells: &[Cell],
     guesses: [f64; 2],
 ) -> ArrayVec<Deferred, 3> {
+    let spans: ArrayVec<(f64, f64), 3> = cells.iter().map(|c| (c.0, c.1)).collect();
+    cells
+        .iter()
+        .zip(w_bounds(cyl, (o, d), (a, b), &spans))
+        .map(|(&cell, w)| Deferred {
+            work: Work::Radial { cell, guesses },
+            w,
+        })
+        .collect()
+}
+
+/// Bounds of `w` over each of `spans` (within `[a, b]`) from one Taylor model of `w` over
+/// `[a, b]`, padded (see [`Deferred`]).
+fn w_bounds<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (o, d): (DVec3, DVec3),
+    (a, b): (f64, f64),
+    spans: &[(f64, f64)],
+) -> ArrayVec<[f64; 2], 3> {
     let (shift, model) = cyl.plane_w_model(o, d, a, b);
     let m = 0.5 * (a + b);
     // max|a'| / |d|.
     let speed = cyl.q_scale(d) / d.length_squared();
-    cells
+    spans
         .iter()
-        .map(|&cell| {
-            // t = u - m over the cell, rounded outward.
-            let e = model.enclosure_over(Interval::exact(cell.0, cell.1) - Interval::exact(m, m));
+        .map(|&(x, y)| {
+            // t = u - m over the span, rounded outward.
+            let e = model.enclosure_over(Interval::exact(x, y) - Interval::exact(m, m));
             let (lo, hi) = (shift + e.lo, shift + e.hi);
             let pad = 1e-9 * speed + 1e-12 * lo.abs().max(hi.abs());
-            let w = if lo.is_nan() || hi.is_nan() {
+            if lo.is_nan() || hi.is_nan() {
                 [f64::NEG_INFINITY, f64::INFINITY]
             } else {
                 [lo - pad, hi + pad]
-            };
-            Deferred { cell, guesses, w }
+            }
         })
         .collect()
 }
@@ -298,7 +391,10 @@ mod tests {
                 let mut lazy = Vec::new();
                 for i in 0..cells.cells.len() {
                     let ([w0, w1], holds) = cells.cell(i);
-                    let (ca, cb, _, _) = cells.cells[i].cell;
+                    let Work::Radial { cell, .. } = cells.cells[i].work else {
+                        panic!("case {case}: a Radial cell");
+                    };
+                    let (ca, cb, _, _) = cell;
                     for j in 0..=32 {
                         let x = ca + (cb - ca) * j as f64 / 32.0;
                         let w = cyl.plane_w_r(o, d, x);
