@@ -615,7 +615,7 @@ fn crop_merge_generate_and_their_errors() {
 
 /// The example scenes `bench` times by default, as arguments naming them from the test's
 /// folder.
-fn bench_scenes() -> [String; 4] {
+fn bench_scenes() -> [String; 6] {
     let example = |f: &str| {
         Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../examples")
