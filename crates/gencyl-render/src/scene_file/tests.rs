@@ -471,6 +471,32 @@ fn hair_files_in_scenes_are_read_relative_to_the_scene() {
         e.contains("scene.toml:3:8: models/cut.hair: ") && e.contains("truncated"),
         "{e}"
     );
+    // A profile: every strand's section; a bad one is an error at the key's value.
+    let lobes = "[[1, 0], [1, 0.35], [0.55, 0.55], [-0.5, 0.87], [-0.45, 0.45], [-0.5, 0], \
+                 [-0.5, -0.87], [0.1, -0.75], [0.55, -0.55]]";
+    std::fs::write(
+        &scene,
+        format!("[[hair]]\nfile = \"models/two.hair\"\nradius = 0.01\nprofile = {lobes}\n"),
+    )
+    .unwrap();
+    let d = SceneDescription::load(&scene).unwrap();
+    assert_eq!(d.cylinders.len(), 3, "2 + 1 segments");
+    for c in &d.cylinders {
+        let Section::Loop(l) = c.section() else {
+            panic!("a profiled strand: {:?}", c.section())
+        };
+        assert_eq!(l.pieces().len(), 3, "three pieces");
+    }
+    std::fs::write(
+        &scene,
+        "[[hair]]\nfile = \"models/two.hair\"\nprofile = [[1, 0], [0, 1]]\n",
+    )
+    .unwrap();
+    let e = SceneDescription::load(&scene).unwrap_err().to_string();
+    assert!(
+        e.contains("scene.toml:3:11: bad profile: a profile needs 3k points"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
