@@ -540,13 +540,12 @@ mod tests {
                     [l(3, 0), l(2, 0), l(1, 0)],
                 ];
                 let t = |a: usize, b: usize, c: usize| m[0][a].mul(m[1][b]).mul(m[2][c]);
-                let det = t(0, 1, 2)
+                t(0, 1, 2)
                     .add(t(1, 2, 0))
                     .add(t(2, 0, 1))
                     .add(neg(t(0, 2, 1)))
                     .add(neg(t(2, 1, 0)))
-                    .add(neg(t(1, 0, 2)));
-                det
+                    .add(neg(t(1, 0, 2)))
             };
             // Only cubic equations are the determinant (the others have their own forms).
             let norm = {
