@@ -96,7 +96,9 @@ pub(crate) type SideRoots = ArrayVec<SideRoot, 64>;
 /// (at most 8), and room for the roots of polished cells beyond one each (a cell holds one root
 /// of `G`; only the branch-by-branch fallback at a graze can report it twice).
 /// A Radial method's cell ([`radial_cells`]) gives way to at most [`MAX_ROOTS`] roots, and
-/// every cell may be reached (the entries walked stay in the list).
+/// every cell may be reached (the entries walked stay in the list); a General method's half
+/// range usually to a few (more, beyond the list's room, are counted as a search that reached
+/// its bound).
 const MAX_CROSSINGS: usize = 64
     + round::MAX_DEFERRED
     + 2
@@ -122,8 +124,8 @@ enum Pending {
 }
 
 /// A cell left for later: a Round method's root cell, polished when reached
-/// ([`round::Deferred`]), or a Radial method's cell, isolated when reached
-/// ([`radial_cells::RadialCells`]).
+/// ([`round::Deferred`]), or a Radial method's cell or a General method's half range,
+/// isolated or searched when reached ([`radial_cells::RadialCells`]).
 #[derive(Clone, Copy, Debug)]
 enum CellRef {
     Round(usize),

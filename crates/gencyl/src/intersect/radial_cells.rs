@@ -11,6 +11,11 @@
 //! isolation keeps (a fiber twisted by many turns, seen along its axis) is split in two when
 //! reached, and the halves wait in turn; a query that takes every hit isolates its cells at
 //! once unless one isolation cannot keep them all.
+//!
+//! The General method's ranges on a Bezier-loop section wait here too, as two halves each
+//! ([`RadialCells::add_profile`]): a half is searched, every piece of the section on it
+//! ([`GeneralizedCylinder::general_window_roots`]), when a query reaches its lower bound of `w`,
+//! so a nearest-hit query usually searches only the half that holds the entry.
 
 use arrayvec::ArrayVec;
 use glam::DVec3;
