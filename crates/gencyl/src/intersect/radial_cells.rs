@@ -125,8 +125,10 @@ impl RadialCells {
 
     /// Defers the General method's range `[a, b]` (where `phi` lies in the disc of radius
     /// `disc`) as two halves, each placed by bounds of `w` over it, and returns true; false
-    /// (nothing deferred) where the cells are not lazy or there is no room for two. A query for
-    /// the nearest hit then usually searches the half that holds the entry and stops.
+    /// (nothing deferred) where there is no room for two. A query for the nearest hit then
+    /// usually searches the half that holds the entry and stops; a query for every hit reaches
+    /// both, and their roots join the walk's list in order (as many as it holds, where one
+    /// range's list of side roots could overflow and drop the nearest).
     pub(crate) fn add_profile<C: CrossSection, S: SweepRule>(
         &mut self,
         cyl: &GeneralizedCylinder<C, S>,
@@ -136,7 +138,7 @@ impl RadialCells {
         valid: (f64, f64),
     ) -> bool {
         let halves = profile_halves(a, b);
-        if !self.lazy || self.cells.remaining_capacity() < halves.len() {
+        if self.cells.remaining_capacity() < halves.len() {
             return false;
         }
         // Roots of the subdivision's pieces may converge just outside a half: its bounds are
