@@ -166,11 +166,13 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
                 }
                 let v = (i as f64 + s) / k * std::f64::consts::TAU;
                 let v = if v >= std::f64::consts::TAU { 0.0 } else { v };
-                if u >= valid.0 && u <= valid.1 && !is_known(found, u, v) {
-                    if found.try_push((u, v)).is_err() {
-                        // No room: a crossing lost, counted.
-                        crate::budget::note_exhausted();
-                    }
+                // No room: a crossing lost, counted.
+                if u >= valid.0
+                    && u <= valid.1
+                    && !is_known(found, u, v)
+                    && found.try_push((u, v)).is_err()
+                {
+                    crate::budget::note_exhausted();
                 }
             }
         }
