@@ -594,6 +594,22 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 .map_or(0, |s| size_of_val(s.as_ref()))
     }
 
+    /// `[lo, hi]` cut at the Frenet frame's switches ([`Self::switches_in`]; a frame of
+    /// another kind does not switch): stretches on which the frame is smooth, each left one
+    /// ending one float before the first float of the next.
+    pub(crate) fn smooth_stretches(&self, lo: f64, hi: f64) -> ArrayVec<(f64, f64), 9> {
+        let mut stretches = ArrayVec::new();
+        let mut start = lo;
+        if let Framing::Frenet = self.framing {
+            for s in self.switches_in(lo, hi) {
+                stretches.push((start, s.next_down()));
+                start = s;
+            }
+        }
+        stretches.push((start, hi));
+        stretches
+    }
+
     /// The parameters in `(a, b)` where the frame may jump, ascending.
     pub(crate) fn switches_in(&self, a: f64, b: f64) -> impl Iterator<Item = f64> + '_ {
         self.switches

@@ -26,7 +26,6 @@ use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use crate::cylinder::GeneralizedCylinder;
-use crate::frame::Framing;
 use crate::real::{Dual, Real, Taylor, V2};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
@@ -479,17 +478,8 @@ fn roots_within<C: CrossSection, S: SweepRule>(
 ) {
     let (lo, hi) = range;
     let scale = cyl.section.bounding_radius();
-    // Stretches of u on which the frame is smooth: split where it may jump, the left stretch
-    // ending one float before the first float of the right one.
-    let mut stretches: ArrayVec<(f64, f64), 9> = ArrayVec::new();
-    let mut start = lo;
-    if let Framing::Frenet = cyl.framing {
-        for s in cyl.switches_in(lo, hi) {
-            stretches.push((start, s.next_down()));
-            start = s;
-        }
-    }
-    stretches.push((start, hi));
+    // Stretches of u on which the frame is smooth.
+    let stretches = cyl.smooth_stretches(lo, hi);
 
     let mut it = Intersector {
         phi: PhiCurve { cyl, o, d },

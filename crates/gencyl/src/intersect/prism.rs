@@ -23,7 +23,6 @@ use glam::{DVec2, DVec3};
 
 use super::{SideRoot, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
-use crate::frame::Framing;
 use crate::real::{Dual, Interval, Real, Taylor, V2, V3};
 use crate::roots::{Enclosure2, Function2D, Isolate2D, isolate_roots_2d};
 use crate::section::CrossSection;
@@ -172,15 +171,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     };
     let breaks = cyl.section.monotone_breaks();
     let opts = OPTS;
-    let mut stretches: ArrayVec<(f64, f64), 9> = ArrayVec::new();
-    let mut start = u0;
-    if let Framing::Frenet = cyl.framing {
-        for s in cyl.switches_in(u0, u1) {
-            stretches.push((start, s.next_down()));
-            start = s;
-        }
-    }
-    stretches.push((start, u1));
+    let stretches = cyl.smooth_stretches(u0, u1);
     for (a, b) in stretches {
         for vw in breaks.windows(2) {
             let mut found = ArrayVec::new();

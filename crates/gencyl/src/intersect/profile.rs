@@ -26,7 +26,6 @@ use glam::{DVec2, DVec3};
 
 use super::curve_curve::{Found, is_known};
 use crate::cylinder::GeneralizedCylinder;
-use crate::frame::Framing;
 use crate::real::{Dual, Real, Taylor, V2};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, first_cells, isolate_in_cells};
 use crate::section::{CrossSection, PieceImplicit};
@@ -116,16 +115,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     valid: (f64, f64),
     found: &mut Found,
 ) {
-    let (lo, hi) = range;
-    let mut stretches: ArrayVec<(f64, f64), 9> = ArrayVec::new();
-    let mut start = lo;
-    if let Framing::Frenet = cyl.framing {
-        for s in cyl.switches_in(lo, hi) {
-            stretches.push((start, s.next_down()));
-            start = s;
-        }
-    }
-    stretches.push((start, hi));
+    let stretches = cyl.smooth_stretches(range.0, range.1);
     let pieces = cyl.section.implicit_pieces();
     let k = pieces.len() as f64;
     let qs = cyl.q_scale(d);
