@@ -27,8 +27,9 @@
 //! (equal in every bit; the local axis is recomputed as `p_i - p_0` from the world points, the
 //! same subtraction that built it, and a strand's segment is taken as one only where its
 //! spline segment gives back exactly its origin and local points). A cylinder packs when its
-//! section is the unit circle, its frame is Frenet's or a projection frame, it has no frame
-//! switches, and its world points come back exactly (`(o + l_i) - o == l_i` for its local
+//! section is the unit circle or a Bezier loop (each loop kept once, its index in the record),
+//! its frame is Frenet's or a projection frame, it has no frame switches, and its world points
+//! come back exactly (`(o + l_i) - o == l_i` for its local
 //! points `l_i` and origin `o`, which holds for nearly every axis); any other cylinder is kept
 //! whole.
 
@@ -41,7 +42,7 @@ use glam::DVec3;
 use crate::curve::CubicBezier;
 use crate::cylinder::GeneralizedCylinder;
 use crate::frame::Framing;
-use crate::section::{CrossSection, Section, UnitCircle};
+use crate::section::{BezierLoop, CrossSection, Section, UnitCircle};
 use crate::strand::{Taper, spline_segment};
 use crate::sweep::{HairSweep, SweepRule};
 
@@ -84,6 +85,10 @@ impl Packed {
     /// Its radii are its strand's [`Taper`]'s, at its place in the strand (`radii` names the
     /// strand in `tapers`).
     const STRAND_TAPER: u32 = 1 << 10;
+    /// Its section is a Bezier loop, the one at the index in the high bits
+    /// ([`Packed::LOOP_SHIFT`]) of `loops`.
+    const LOOP: u32 = 1 << 11;
+    const LOOP_SHIFT: u32 = 16;
     /// In `radii`: the radii at `u = 1` are the entry after those at `u = 0`.
     const TAPERED: u32 = 1 << 31;
 }
@@ -217,6 +222,8 @@ pub struct PackedCylinders {
     tapers: Vec<StrandTaper>,
     /// The cylinders that did not pack.
     whole: Vec<GeneralizedCylinder>,
+    /// The Bezier loops of the packed cylinders' sections, each once (shared, not copied).
+    loops: Vec<BezierLoop>,
 }
 
 impl PackedCylinders {
@@ -267,6 +274,7 @@ impl PackedCylinders {
             points: Vec::with_capacity(cylinders.len() + 1),
             ..Default::default()
         };
+        out.index_loops(&cylinders);
         // A strand's segments go by their control points where every one of them that packs
         // gives back its axis exactly as its spline segment (a segment's points are the next
         // ones' too, so all or none; one kept whole keeps its point in `points` all the same).
@@ -349,6 +357,30 @@ impl PackedCylinders {
         out.tapers.shrink_to_fit();
         out.whole.shrink_to_fit();
         out
+    }
+
+    /// Gives each packed record with a Bezier loop its loop's index (the loops kept once each, by
+    /// identity); past `2^16` loops the rest are kept whole.
+    fn index_loops(&mut self, cylinders: &[GeneralizedCylinder]) {
+        let mut index: std::collections::HashMap<usize, u32> = std::collections::HashMap::new();
+        for (r, c) in self.records.iter_mut().zip(cylinders) {
+            let Section::Loop(l) = &c.section else {
+                continue;
+            };
+            if r.flags & Packed::WHOLE != 0 {
+                continue;
+            }
+            let next = self.loops.len() as u32;
+            let k = *index.entry(l.storage_id()).or_insert(next);
+            if k == next {
+                if next >= 1 << 16 {
+                    *r = Self::pack_whole();
+                    continue;
+                }
+                self.loops.push(l.clone());
+            }
+            r.flags |= k << Packed::LOOP_SHIFT;
+        }
     }
 
     /// Completes record `i`, segment `j = i - first` of the strand `controls` whose segments go by
@@ -443,20 +475,29 @@ impl PackedCylinders {
     /// The record of `c` (without its radii and points) if it packs (module docs), else a
     /// placeholder marked [`Packed::WHOLE`].
     fn pack(c: &GeneralizedCylinder) -> Packed {
-        Self::packed(c).unwrap_or(Packed {
+        Self::packed(c).unwrap_or_else(Self::pack_whole)
+    }
+
+    /// The placeholder record of a cylinder kept whole.
+    fn pack_whole() -> Packed {
+        Packed {
             reference: DVec3::ZERO,
             rotation: [0.0; 2],
             radii: 0,
             flags: Packed::WHOLE,
             extra: 0,
-        })
+        }
     }
 
     /// The record of `c` (without its radii and points), if it packs.
     fn packed(c: &GeneralizedCylinder) -> Option<Packed> {
-        if !matches!(c.section, Section::Circle(_)) || c.has_switches() {
+        if c.has_switches() {
             return None;
         }
+        let section = match c.section {
+            Section::Circle(_) => 0,
+            Section::Loop(_) => Packed::LOOP,
+        };
         let (flag, reference) = match c.framing {
             Framing::Frenet => (0, DVec3::ZERO),
             Framing::Projected(r) => (Packed::PROJECTED, r),
@@ -476,7 +517,7 @@ impl PackedCylinders {
             reference,
             rotation: c.sweep.rotation,
             radii: 0,
-            flags: flag | caps | (u32::from(c.may_fold()) * Packed::MAY_FOLD),
+            flags: flag | section | caps | (u32::from(c.may_fold()) * Packed::MAY_FOLD),
             extra: 0,
         })
     }
@@ -555,7 +596,7 @@ impl PackedCylinders {
             } else {
                 Framing::Frenet
             },
-            Section::Circle(UnitCircle),
+            self.section(r),
             self.sweep(i, r),
             [
                 r.flags & Packed::CAP_START != 0,
@@ -563,6 +604,16 @@ impl PackedCylinders {
             ],
             r.flags & Packed::MAY_FOLD != 0,
         )
+    }
+
+    /// A packed record's section: its Bezier loop (shared) or the unit circle.
+    #[inline]
+    fn section(&self, r: &Packed) -> Section {
+        if r.flags & Packed::LOOP != 0 {
+            Section::Loop(self.loops[(r.flags >> Packed::LOOP_SHIFT) as usize].clone())
+        } else {
+            Section::Circle(UnitCircle)
+        }
     }
 
     /// Cylinder `i`'s axis control points in world coordinates and
@@ -583,7 +634,11 @@ impl PackedCylinders {
             return (c.axis().points, c.reach_ends());
         }
         // `reach_ends` of the rebuilt cylinder.
-        let bound = UnitCircle.bounding_radius();
+        let bound = if r.flags & Packed::LOOP != 0 {
+            self.loops[(r.flags >> Packed::LOOP_SHIFT) as usize].bounding_radius()
+        } else {
+            UnitCircle.bounding_radius()
+        };
         let reach = self.sweep(i, r).scale_bound().map(|l| l * bound);
         (self.points_of(i, spline_points_near), reach)
     }
@@ -645,8 +700,8 @@ impl PackedCylinders {
         ]
     }
 
-    /// Bytes held: the records, points and radii, and the whole cylinders with their own heap
-    /// data (a section's profile not included: profiles are shared).
+    /// Bytes held: the records, points and radii, the loops' handles, and the whole cylinders
+    /// with their own heap data (a section's profile not included: profiles are shared).
     pub fn memory_bytes(&self) -> usize {
         self.records.capacity() * size_of::<Packed>()
             + (self.points.capacity() + self.extra.capacity()) * size_of::<DVec3>()
@@ -655,6 +710,7 @@ impl PackedCylinders {
             + self.tapers.capacity() * size_of::<StrandTaper>()
             + self.whole.capacity() * size_of::<GeneralizedCylinder>()
             + self.whole.iter().map(|c| c.heap_bytes()).sum::<usize>()
+            + self.loops.capacity() * size_of::<BezierLoop>()
     }
 
     /// The cylinders kept whole (did not pack), in order.
@@ -844,7 +900,19 @@ mod tests {
         assert!(mapped.extra == packed.extra && mapped.radii == packed.radii);
         assert!(mapped.inner == packed.inner && mapped.inner_start == packed.inner_start);
         assert!(mapped.whole == packed.whole);
-        // What packs: all strand segments but those whose points do not come back; three kinds
+        // Profiled cylinders pack (those whose points come back), each block's loop kept once.
+        let looped = all
+            .iter()
+            .filter(|c| matches!(c.section, Section::Loop(_)))
+            .count();
+        let packed_loops = packed
+            .records
+            .iter()
+            .filter(|r| r.flags & Packed::LOOP != 0)
+            .count();
+        assert!(packed_loops > 0, "{packed_loops} of {looped} profiled pack");
+        assert_eq!(packed.loops.len(), packed_loops, "one loop a block");
+        // What packs: all strand segments but those whose points do not come back; two kinds
         // a block stay whole.
         let whole = packed.whole().len();
         assert!(whole >= 12, "{whole} whole");
