@@ -13,9 +13,11 @@
 //!   For elliptical fibers on ranges at least [`OBLIQUE`] off perpendicular the zeros of
 //!   `g(u) = q^2 (|phi|^2 - 1)` ([`Radial`]) are isolated instead, which is cheaper.
 //! - Any section ([`Method::General`]): on ranges where the ray is at least [`OBLIQUE`] off
-//!   perpendicular to the axis, seed 2.3: intersect the curve `phi` with the section by
-//!   subdivision ([`curve_curve`]), working with `q phi` (see [`Radial`]), finite through the
-//!   poles of `phi`; elsewhere the ray's crossings of the section's prism in the normal-plane
+//!   perpendicular to the axis, each piece of a Bezier-loop profile by the zeros of its
+//!   implicit equation along the ray ([`profile`]), and a piece unfit for that (or the circle)
+//!   as seed 2.3 has it: the curve `phi` intersected with the section by subdivision
+//!   ([`curve_curve`]), working with `q phi` (see [`Radial`]), finite through the poles of
+//!   `phi`; elsewhere the ray's crossings of the section's prism in the normal-plane
 //!   condition, a regular system in `(u, v)` ([`prism`]).
 //! - Caps: the ray against the planes at `u = 0` and `u = 1`, inside the section.
 
@@ -1387,13 +1389,6 @@ mod tests {
         }
     }
 
-    /// Case `case` of the entries and any-hit tests: a round fiber of radius `r` from 1e-4 to
-    /// 1e-1 of its length, of constant radius or tapering up to threefold, every fifth at 1e4,
-    /// and a ray exactly or nearly (to 1e-14) perpendicular to its axis, nearly along it or
-    /// random, from a point on the surface, inside the fiber or outside it. Every seventh fiber
-    /// is elliptical (minor radius 0.2 to 0.9 of the major `r`) and twisted, which the Radial
-    /// method intersects (leaving cells for later, [`radial_cells`]). Returns the fiber, the
-    /// ray and `r`.
     /// A three-lobed profile of three cubic pieces.
     fn three_lobes() -> Section {
         let lobes: Vec<DVec2> = (0..3)
@@ -1406,6 +1401,14 @@ mod tests {
         Section::Loop(crate::section::BezierLoop::new(&lobes).unwrap())
     }
 
+    /// Case `case` of the entries and any-hit tests: a round fiber of radius `r` from 1e-4 to
+    /// 1e-1 of its length, of constant radius or tapering up to threefold, every fifth at 1e4,
+    /// and a ray exactly or nearly (to 1e-14) perpendicular to its axis, nearly along it or
+    /// random, from a point on the surface, inside the fiber or outside it. Every seventh fiber
+    /// is elliptical (minor radius 0.2 to 0.9 of the major `r`) and twisted, which the Radial
+    /// method intersects (leaving cells for later, [`radial_cells`]), and every seventh
+    /// three-lobed and twisted (the General method's halves, left likewise). Returns the fiber,
+    /// the ray and `r`.
     fn fiber_and_ray(rng: &mut Rng, case: usize) -> (Cyl, Ray, f64) {
         let offset = if case.is_multiple_of(5) {
             DVec3::splat(1e4)
