@@ -14,9 +14,16 @@
 //! its axis, which the scene format allows, can cross a ray more often). Geometry within the
 //! usual twists does not reach them in the test suite.
 
+use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 static EXHAUSTED: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    /// The same count for the searches run on this thread (tests run side by side in one
+    /// process: each asks about its own searches).
+    static EXHAUSTED_HERE: Cell<u64> = const { Cell::new(0) };
+}
 
 /// How many root searches reached their work bound since the process started.
 pub fn exhausted_searches() -> u64 {
@@ -26,4 +33,11 @@ pub fn exhausted_searches() -> u64 {
 /// Counts one search that reached its work bound.
 pub(crate) fn note_exhausted() {
     EXHAUSTED.fetch_add(1, Ordering::Relaxed);
+    EXHAUSTED_HERE.with(|n| n.set(n.get() + 1));
+}
+
+/// How many root searches run on this thread reached their work bound.
+#[cfg(test)]
+pub(crate) fn exhausted_here() -> u64 {
+    EXHAUSTED_HERE.with(Cell::get)
 }

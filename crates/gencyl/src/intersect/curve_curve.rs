@@ -593,7 +593,7 @@ mod tests {
     #[test]
     fn the_work_bound_ends_the_search_with_true_roots() {
         let cyl = xray_fiber(0.05);
-        let before = crate::budget::exhausted_searches();
+        let before = crate::budget::exhausted_here();
         let (mut complete, mut bounded_roots) = (0, 0);
         for k in 0..40 {
             let o = DVec3::new(-1.0, -0.9 + 0.045 * k as f64, 0.45 + 0.002 * k as f64) - cyl.origin;
@@ -617,7 +617,7 @@ mod tests {
         assert!(complete > 20, "the rays cross the fiber: {complete} roots");
         assert!(bounded_roots > 0, "the chords' fallback still finds roots");
         assert!(
-            crate::budget::exhausted_searches() > before,
+            crate::budget::exhausted_here() > before,
             "exhaustion is counted"
         );
     }

@@ -36,7 +36,7 @@ use crate::bernstein::Bernstein;
 use crate::cylinder::{GeneralizedCylinder, Hit, Part, Ray, v2};
 use crate::frame::{Framing, frame_with};
 use crate::real::{Real, V2};
-use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots};
+use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
@@ -178,7 +178,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         }
     }
 
-    /// The sorted roots of [`Radial`] with the given radius on `[lo, hi]`.
+    /// The sorted roots of [`Radial`] with the given radius on `[lo, hi]` (the tests' eager
+    /// isolation).
+    #[cfg(test)]
     pub(crate) fn radial_roots_between(
         &self,
         o: DVec3,
@@ -188,7 +190,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         hi: f64,
     ) -> ArrayVec<f64, MAX_ROOTS> {
         let mut us = ArrayVec::new();
-        isolate_roots(
+        crate::roots::isolate_roots(
             &Radial {
                 cyl: self,
                 o,
@@ -696,9 +698,19 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 prism::roots(self, o, d, (a, b), out);
                 continue;
             }
-            let mut ends: ArrayVec<f64, { MAX_ROOTS + 2 }> = ArrayVec::new();
+            // The disc's crossings (an elliptical rule turning many times makes them many:
+            // a search that overflows is halved, as a piece's is).
+            // No room: the ranges past the last kept crossing merge into one, counted.
+            let mut ends: ArrayVec<f64, { 4 * MAX_ROOTS + 2 }> = ArrayVec::new();
             ends.push(a);
-            ends.extend(self.radial_roots_between(o, d, r, a, b));
+            let opts = self.radial_options(d, r);
+            profile::piece_zeros(&g, (a, b), &opts, |u| {
+                if ends.len() + 1 < ends.capacity() {
+                    ends.push(u);
+                } else {
+                    crate::budget::note_exhausted();
+                }
+            });
             ends.push(b);
             for w in ends.windows(2) {
                 let (a, b) = (w[0], w[1]);
@@ -1365,7 +1377,7 @@ mod tests {
                     };
                     let mut fast = ArrayVec::new();
                     assert!(
-                        isolate_roots(&g, a, b, &opts, &mut fast),
+                        crate::roots::isolate_roots(&g, a, b, &opts, &mut fast),
                         "{name}: over budget on [{a}, {b}] for o={o:?} d={d:?}"
                     );
                     let mut reference = ArrayVec::new();
@@ -1712,7 +1724,7 @@ mod tests {
                     crossings.push(hi);
                 }
             }
-            let before = crate::budget::exhausted_searches();
+            let before = crate::budget::exhausted_here();
             let mut all = Vec::new();
             cyl.intersect_all(&ray, 0.0, f64::INFINITY, &mut all);
             let hit = cyl.intersect(&ray, 0.0, f64::INFINITY).expect("a hit");
@@ -1730,7 +1742,7 @@ mod tests {
                 "{turns} turns: the nearest is the list's first"
             );
             assert_eq!(
-                crate::budget::exhausted_searches(),
+                crate::budget::exhausted_here(),
                 before,
                 "{turns} turns: a search reached its bound"
             );
