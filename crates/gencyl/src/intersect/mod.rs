@@ -99,8 +99,8 @@ pub(crate) type SideRoots = ArrayVec<SideRoot, 64>;
 /// of `G`; only the branch-by-branch fallback at a graze can report it twice).
 /// A Radial method's cell ([`radial_cells`]) gives way to at most [`MAX_ROOTS`] roots, and
 /// every cell may be reached (the entries walked stay in the list); a General method's half
-/// range usually to a few (more, beyond the list's room, are counted as a search that reached
-/// its bound).
+/// range usually to a few, and to two halves where its searches keep no more (more, beyond the
+/// list's room, are counted as a search that reached its bound).
 const MAX_CROSSINGS: usize = 64
     + round::MAX_DEFERRED
     + 2
@@ -699,18 +699,22 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 continue;
             }
             // The disc's crossings (an elliptical rule turning many times makes them many:
-            // a search that overflows is halved, as a piece's is).
-            // No room: the ranges past the last kept crossing merge into one, counted.
+            // a search that overflows is halved, as a piece's is). No room: the ranges past
+            // the last kept crossing merge into one, counted.
             let mut ends: ArrayVec<f64, { 4 * MAX_ROOTS + 2 }> = ArrayVec::new();
             ends.push(a);
             let opts = self.radial_options(d, r);
-            profile::piece_zeros(&g, (a, b), &opts, |u| {
+            let mut room = true;
+            let all = profile::piece_zeros(&g, (a, b), &opts, |u| {
                 if ends.len() + 1 < ends.capacity() {
                     ends.push(u);
                 } else {
-                    crate::budget::note_exhausted();
+                    room = false;
                 }
             });
+            if !(all && room) {
+                crate::budget::note_exhausted();
+            }
             ends.push(b);
             for w in ends.windows(2) {
                 let (a, b) = (w[0], w[1]);
@@ -719,12 +723,18 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 }
                 // A profile's halves of the range wait for a query to reach them.
                 let profiled = !self.section.implicit_pieces().is_empty();
-                if !profiled {
-                    self.general_window_roots((o, d), (a, b), r, (lo, hi), &mut found);
-                } else if !radial_cells.add_profile(self, (o, d), (a, b), r, (lo, hi)) {
-                    for half in radial_cells::profile_halves(a, b) {
-                        self.general_window_roots((o, d), half, r, (lo, hi), &mut found);
+                // Searched at once: what does not fit is counted.
+                let mut eager = |range| {
+                    if !self.general_window_roots((o, d), range, r, (lo, hi), &mut found) {
+                        crate::budget::note_exhausted();
                     }
+                };
+                if !profiled {
+                    eager((a, b));
+                } else if !radial_cells.add_profile(self, (o, d), (a, b), r, (lo, hi)) {
+                    radial_cells::profile_halves(a, b)
+                        .into_iter()
+                        .for_each(eager);
                 }
             }
         }
@@ -734,7 +744,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// The General method's roots `(u, v)` on `[a, b]`, where `phi` lies in the disc of radius
     /// `disc`: the pieces with an implicit equation by one search in `u` each ([`profile`]),
     /// the rest (and sections without pieces) by the curve-curve subdivision; `u` kept in
-    /// `valid`.
+    /// `valid`. Returns whether the pieces' searches kept every root they found (false: more
+    /// than `found` or a search holds; the caller splits the range or counts the search).
     pub(crate) fn general_window_roots(
         &self,
         (o, d): (DVec3, DVec3),
@@ -742,9 +753,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         disc: f64,
         valid: (f64, f64),
         found: &mut curve_curve::Found,
-    ) {
+    ) -> bool {
         let implicit = self.section.implicit_pieces();
-        profile::roots(self, (o, d), (a, b), disc, valid, found);
+        let all = profile::roots(self, (o, d), (a, b), disc, valid, found);
         let k = implicit.len() as f64;
         let unfit = |v: f64| {
             let i = ((v / std::f64::consts::TAU * k) as usize).min(implicit.len() - 1);
@@ -755,6 +766,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         } else if implicit.iter().any(Option::is_none) {
             curve_curve::roots(self, o, d, (a, b), valid, found, unfit);
         }
+        all
     }
 
     /// The General method's roots `found`, each once, as side roots (`w` at `u`) in `out`.
@@ -768,8 +780,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         curve_curve::dedupe(&mut found);
         for (u, v) in found {
             let w = self.plane_w_r(o, d, u);
-            if w.is_finite() && !out.is_full() {
-                out.push(SideRoot { u, w, v });
+            // No room: a crossing lost, counted.
+            if w.is_finite() && out.try_push(SideRoot { u, w, v }).is_err() {
+                crate::budget::note_exhausted();
             }
         }
     }

@@ -15,7 +15,8 @@
 //! The General method's ranges on a Bezier-loop section wait here too, as two halves each
 //! ([`RadialCells::add_profile`]): a half is searched, every piece of the section on it
 //! ([`GeneralizedCylinder::general_window_roots`]), when a query reaches its lower bound of `w`,
-//! so a nearest-hit query usually searches only the half that holds the entry.
+//! so a nearest-hit query usually searches only the half that holds the entry. A half whose
+//! searches find more roots than they keep is split in two in turn.
 
 use arrayvec::ArrayVec;
 use glam::DVec3;
@@ -141,19 +142,8 @@ impl RadialCells {
         if self.cells.remaining_capacity() < halves.len() {
             return false;
         }
-        // Roots of the subdivision's pieces may converge just outside a half: its bounds are
-        // taken over the half grown by a hundredth of the range at each end.
-        let grow = 0.01 * (b - a);
-        let spans: ArrayVec<(f64, f64), 2> = halves
-            .iter()
-            .map(|&(x, y)| ((x - grow).max(a), (y + grow).min(b)))
-            .collect();
-        for (&range, w) in halves.iter().zip(w_bounds(cyl, (o, d), (a, b), &spans)) {
-            self.cells.push(Deferred {
-                work: Work::Profile { range, disc, valid },
-                w,
-            });
-        }
+        self.cells
+            .extend(profile_cells(cyl, (o, d), &halves, disc, valid));
         true
     }
 
@@ -178,10 +168,11 @@ impl RadialCells {
         (c.w, holds)
     }
 
-    /// Isolates cell `i` into `out` (as an eager isolation would have given its roots), and
-    /// returns no cells; or, where it holds more roots than one isolation keeps
-    /// ([`crate::roots::MAX_ROOTS`]: a fiber twisted by many turns, seen along its axis),
-    /// defers its two halves instead and returns them, for the walk to reach the nearer first.
+    /// Isolates cell `i` into `out` (as an eager isolation would have given its roots; a
+    /// General method's half range: searches it), and returns no cells; or, where it holds more
+    /// roots than one isolation keeps ([`crate::roots::MAX_ROOTS`]; a half range: more than
+    /// its searches keep; a fiber twisted by many turns, seen along its axis), defers its two
+    /// halves instead and returns them, for the walk to reach the nearer first.
     /// Where there is no room for them the roots kept (the lowest `u`'s) go to `out` and the
     /// search is counted as one that reached its bound.
     pub(crate) fn isolate<C: CrossSection, S: SweepRule>(
@@ -195,7 +186,17 @@ impl RadialCells {
             Work::Radial { cell, guesses } => (cell, guesses),
             Work::Profile { range, disc, valid } => {
                 let mut found = Found::new();
-                cyl.general_window_roots((o, d), range, disc, valid, &mut found);
+                let all = cyl.general_window_roots((o, d), range, disc, valid, &mut found);
+                let (a, b) = range;
+                let halves = profile_halves(a, b);
+                if !all && halves.len() == 2 && self.has_room() {
+                    // More roots than the searches keep: the halves wait instead.
+                    let placed = profile_cells(cyl, (o, d), &halves, disc, valid);
+                    return self.replace(i, [placed[0], placed[1]]);
+                }
+                if !all {
+                    crate::budget::note_exhausted();
+                }
                 cyl.push_general_roots(o, d, found, out);
                 let _ = self.free.try_push(i);
                 return ArrayVec::new();
@@ -207,25 +208,11 @@ impl RadialCells {
         let (a, b, fa, fb) = cell;
         let mid = 0.5 * (a + b);
         if found.overflow {
-            let room = !self.cells.is_full() || !self.free.is_empty();
-            if room && a < mid && mid < b {
-                // The first half takes the cell's place (the walk has let go of it), the
-                // second a finished cell's, or a new one.
+            if self.has_room() && a < mid && mid < b {
                 let fm = f.eval(mid);
                 let halves = [(a, mid, fa, fm), (mid, b, fm, fb)];
                 let placed = place(cyl, (o, d), (a, b), &halves, guesses);
-                self.cells[i] = placed[0];
-                let j = match self.free.pop() {
-                    Some(j) => {
-                        self.cells[j] = placed[1];
-                        j
-                    }
-                    None => {
-                        self.cells.push(placed[1]);
-                        self.cells.len() - 1
-                    }
-                };
-                return ArrayVec::from_iter([i, j]);
+                return self.replace(i, [placed[0], placed[1]]);
             }
             if found.complete {
                 crate::budget::note_exhausted();
@@ -234,6 +221,30 @@ impl RadialCells {
         push_roots(cyl, (o, d), &us, out);
         let _ = self.free.try_push(i);
         ArrayVec::new()
+    }
+}
+
+impl RadialCells {
+    /// Whether a cell being isolated may give way to two.
+    fn has_room(&self) -> bool {
+        !self.cells.is_full() || !self.free.is_empty()
+    }
+
+    /// Cell `i`, reached, replaced by `halves`: the first takes its place (the walk has let go
+    /// of it), the second a finished cell's, or a new one. Returns their indices.
+    fn replace(&mut self, i: usize, halves: [Deferred; 2]) -> ArrayVec<usize, 3> {
+        self.cells[i] = halves[0];
+        let j = match self.free.pop() {
+            Some(j) => {
+                self.cells[j] = halves[1];
+                j
+            }
+            None => {
+                self.cells.push(halves[1]);
+                self.cells.len() - 1
+            }
+        };
+        ArrayVec::from_iter([i, j])
     }
 }
 
@@ -248,6 +259,33 @@ pub(crate) fn profile_halves(a: f64, b: f64) -> ArrayVec<(f64, f64), 2> {
     } else {
         ArrayVec::from_iter([(a, b)])
     }
+}
+
+/// The General method's `halves` (adjacent, ascending) to defer, each placed by bounds of `w`
+/// from one model over their union. Roots of the subdivision's pieces may converge just
+/// outside a half: its bounds are taken over the half grown by a hundredth of the union at
+/// each end (within the union; a half of a half split again is grown within its parent).
+fn profile_cells<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (o, d): (DVec3, DVec3),
+    halves: &[(f64, f64)],
+    disc: f64,
+    valid: (f64, f64),
+) -> ArrayVec<Deferred, 2> {
+    let (a, b) = (halves[0].0, halves[halves.len() - 1].1);
+    let grow = 0.01 * (b - a);
+    let spans: ArrayVec<(f64, f64), 2> = halves
+        .iter()
+        .map(|&(x, y)| ((x - grow).max(a), (y + grow).min(b)))
+        .collect();
+    halves
+        .iter()
+        .zip(w_bounds(cyl, (o, d), (a, b), &spans))
+        .map(|(&range, w)| Deferred {
+            work: Work::Profile { range, disc, valid },
+            w,
+        })
+        .collect()
 }
 
 /// [`Radial`] for the unit circle (`R = 1`) and its isolation settings.
