@@ -321,6 +321,8 @@ struct Intersector<'a, C, S> {
     /// Piece pairs visited so far, and the work bound ([`MAX_PAIRS`]).
     pairs: u32,
     max_pairs: u32,
+    /// Whether a pair that may hold a root met a full `found` (roots possibly lost).
+    overflow: bool,
 }
 
 /// A piece of `phi` and, once computed, its halves: the subdivision of `phi` (a Taylor model
@@ -343,10 +345,11 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
     /// INTERSECT(curve1, curve2) of seed 2.3, for a piece of `phi` and one of the section.
     fn intersect(&mut self, node: &mut PhiNode, b: Piece, depth: u32) {
         let a = node.piece;
-        if !boxes_overlap(&a, &b) || self.found.is_full() {
+        if !boxes_overlap(&a, &b) || separated(&a, &b) || separated(&b, &a) {
             return;
         }
-        if separated(&a, &b) || separated(&b, &a) {
+        if self.found.is_full() {
+            self.overflow = true;
             return;
         }
         self.pairs += 1;
@@ -439,10 +442,10 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
             let v = v.rem_euclid(std::f64::consts::TAU);
             if u >= self.range.0
                 && u <= self.range.1
-                && !self.found.is_full()
                 && !is_known(self.found, u, v)
+                && self.found.try_push((u, v)).is_err()
             {
-                self.found.push((u, v));
+                self.overflow = true;
             }
         }
     }
@@ -450,7 +453,8 @@ impl<C: CrossSection, S: SweepRule> Intersector<'_, C, S> {
 
 /// Roots `(u, v)` of `phi(u) = cs(v)` for `u` in `range`, where `phi` must be finite, by the
 /// general method; Newton results anywhere in `valid` are kept (a root at the edge of `range`
-/// may converge just outside it). Appends to `found`.
+/// may converge just outside it). Appends to `found`; returns whether every root found had
+/// room there (false: some may be lost, for the caller to split its range or count).
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
@@ -459,8 +463,8 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     valid: (f64, f64),
     found: &mut Found,
     search: impl Fn(f64) -> bool,
-) {
-    roots_within(cyl, o, d, range, valid, found, MAX_PAIRS, search);
+) -> bool {
+    roots_within(cyl, o, d, range, valid, found, MAX_PAIRS, search)
 }
 
 /// [`roots`] with a work bound of `max_pairs` piece pairs, on the monotone pieces of the
@@ -475,7 +479,7 @@ fn roots_within<C: CrossSection, S: SweepRule>(
     found: &mut Found,
     max_pairs: u32,
     search: impl Fn(f64) -> bool,
-) {
+) -> bool {
     let (lo, hi) = range;
     let scale = cyl.section.bounding_radius();
     // Stretches of u on which the frame is smooth.
@@ -491,6 +495,7 @@ fn roots_within<C: CrossSection, S: SweepRule>(
         piece: (0.0, 0.0),
         pairs: 0,
         max_pairs,
+        overflow: false,
     };
     let vb = cyl.section.monotone_breaks();
     for (u0, u1) in stretches {
@@ -512,6 +517,7 @@ fn roots_within<C: CrossSection, S: SweepRule>(
             it.intersect(&mut root, b, 0);
         }
     }
+    !it.overflow
 }
 
 /// Roots found by the general method: `(u, v)`.

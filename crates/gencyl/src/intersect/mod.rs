@@ -699,8 +699,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 continue;
             }
             // The disc's crossings (an elliptical rule turning many times makes them many:
-            // a search that overflows is halved, as a piece's is). No room: the ranges past
-            // the last kept crossing merge into one, counted.
+            // a search that overflows is halved, as a piece's is). Where some are not kept
+            // (no room, or a search past its cap), windows merge: then every window is
+            // searched, inside the disc or not (`phi` is finite on an oblique range; the disc
+            // only keeps the searches short), and nothing is lost.
             let mut ends: ArrayVec<f64, { 4 * MAX_ROOTS + 2 }> = ArrayVec::new();
             ends.push(a);
             let opts = self.radial_options(d, r);
@@ -712,13 +714,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     room = false;
                 }
             });
-            if !(all && room) {
-                crate::budget::note_exhausted();
-            }
+            let merged = !(all && room);
             ends.push(b);
             for w in ends.windows(2) {
                 let (a, b) = (w[0], w[1]);
-                if !(b > a && g.eval(0.5 * (a + b)) < 0.0) {
+                if !(b > a && (merged || g.eval(0.5 * (a + b)) < 0.0)) {
                     continue;
                 }
                 // A profile's halves of the range wait for a query to reach them.
@@ -744,8 +744,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// The General method's roots `(u, v)` on `[a, b]`, where `phi` lies in the disc of radius
     /// `disc`: the pieces with an implicit equation by one search in `u` each ([`profile`]),
     /// the rest (and sections without pieces) by the curve-curve subdivision; `u` kept in
-    /// `valid`. Returns whether the pieces' searches kept every root they found (false: more
-    /// than `found` or a search holds; the caller splits the range or counts the search).
+    /// `valid`. Returns whether every root found was kept (false: more than `found` or a
+    /// piece's search holds; the caller splits the range or counts the search).
     pub(crate) fn general_window_roots(
         &self,
         (o, d): (DVec3, DVec3),
@@ -761,12 +761,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             let i = ((v / std::f64::consts::TAU * k) as usize).min(implicit.len() - 1);
             implicit[i].is_none()
         };
-        if implicit.is_empty() {
-            curve_curve::roots(self, o, d, (a, b), valid, found, |_| true);
+        let subdivided = if implicit.is_empty() {
+            curve_curve::roots(self, o, d, (a, b), valid, found, |_| true)
         } else if implicit.iter().any(Option::is_none) {
-            curve_curve::roots(self, o, d, (a, b), valid, found, unfit);
-        }
-        all
+            curve_curve::roots(self, o, d, (a, b), valid, found, unfit)
+        } else {
+            true
+        };
+        all && subdivided
     }
 
     /// The General method's roots `found`, each once, as side roots (`w` at `u`) in `out`.
