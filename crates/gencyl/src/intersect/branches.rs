@@ -147,7 +147,7 @@ impl<'a, C: CrossSection, S: SweepRule> Quadric<'a, C, S> {
     /// (at a branch point, `D = 0`, both branches meet).
     fn push(&self, u: f64, sign: f64, out: &mut SideRoots) {
         let (w, _) = self.branch(u, sign);
-        if !w.is_finite() || out.is_full() {
+        if !w.is_finite() {
             return;
         }
         let scale = self.cyl.sweep.scale_bound()[0].max(self.cyl.sweep.scale_bound()[1]);
@@ -166,11 +166,14 @@ impl<'a, C: CrossSection, S: SweepRule> Quadric<'a, C, S> {
             .sweep
             .inverse(u, V2::new(f.n.dot(e), f.b.dot(e)))
             .value();
-        out.push(super::SideRoot {
-            u,
-            w,
-            v: crate::section::angle(DVec2::new(phi.x, phi.y)),
-        });
+        super::push_side_root(
+            out,
+            super::SideRoot {
+                u,
+                w,
+                v: crate::section::angle(DVec2::new(phi.x, phi.y)),
+            },
+        );
     }
 }
 

@@ -93,6 +93,15 @@ pub(crate) struct SideRoot {
 
 pub(crate) type SideRoots = ArrayVec<SideRoot, 64>;
 
+/// Appends `root` to `out`; with no room the crossing is lost, and counted as a search that
+/// reached its bound.
+#[inline]
+pub(crate) fn push_side_root(out: &mut SideRoots, root: SideRoot) {
+    if out.try_push(root).is_err() {
+        crate::budget::note_exhausted();
+    }
+}
+
 /// Most crossings of one ray and one cylinder: the side roots and the Round method's unpolished
 /// cells, two caps, the fold envelope's roots (at most 8) and one per switch of the Frenet frame
 /// (at most 8), and room for the roots of polished cells beyond one each (a cell holds one root
@@ -782,9 +791,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         curve_curve::dedupe(&mut found);
         for (u, v) in found {
             let w = self.plane_w_r(o, d, u);
-            // No room: a crossing lost, counted.
-            if w.is_finite() && out.try_push(SideRoot { u, w, v }).is_err() {
-                crate::budget::note_exhausted();
+            if w.is_finite() {
+                push_side_root(out, SideRoot { u, w, v });
             }
         }
     }
@@ -864,8 +872,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         };
         for w in roots {
             let v = crate::section::angle(phi0 + w * phid);
-            if w.is_finite() && !out.is_full() {
-                out.push(SideRoot { u, w: shift + w, v });
+            if w.is_finite() {
+                push_side_root(out, SideRoot { u, w: shift + w, v });
             }
         }
         true
@@ -897,12 +905,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     pub(crate) fn push_circle_root(&self, o: DVec3, d: DVec3, u: f64, out: &mut SideRoots) {
         let (qphi, q) = self.scaled_phi_r(o, d, u);
         let w = self.refined_w(o, d, u);
-        if w.is_finite() && !out.is_full() {
-            out.push(SideRoot {
-                u,
-                w,
-                v: crate::section::angle(DVec2::new(qphi.x / q, qphi.y / q)),
-            });
+        if w.is_finite() {
+            let v = crate::section::angle(DVec2::new(qphi.x / q, qphi.y / q));
+            push_side_root(out, SideRoot { u, w, v });
         }
     }
 

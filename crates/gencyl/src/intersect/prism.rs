@@ -205,7 +205,7 @@ pub(crate) fn box_roots<C: CrossSection, S: SweepRule>(
 /// Records a root unless it repeats one (a root on a break between two pieces is found in
 /// both).
 fn push(u: f64, w: f64, v: f64, out: &mut SideRoots) {
-    if !w.is_finite() || out.is_full() {
+    if !w.is_finite() {
         return;
     }
     let dup = out.iter().any(|r| {
@@ -213,7 +213,7 @@ fn push(u: f64, w: f64, v: f64, out: &mut SideRoots) {
         (r.u - u).abs() <= 1e-12 && dv.min(std::f64::consts::TAU - dv) <= 1e-9
     });
     if !dup {
-        out.push(SideRoot { u, w, v });
+        super::push_side_root(out, SideRoot { u, w, v });
     }
 }
 

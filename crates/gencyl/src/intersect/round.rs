@@ -974,7 +974,7 @@ fn push<C: CrossSection, S: SweepRule>(
     w: f64,
     out: &mut SideRoots,
 ) {
-    if !w.is_finite() || out.is_full() {
+    if !w.is_finite() {
         return;
     }
     let r = cyl.sweep.scale_bound()[0].max(cyl.sweep.scale_bound()[1]);
@@ -987,7 +987,7 @@ fn push<C: CrossSection, S: SweepRule>(
     }
     // The section angle is left to the hit, which takes it and the normal from one frame
     // ([`section_angle`]).
-    out.push(SideRoot { u, w, v: f64::NAN });
+    super::push_side_root(out, SideRoot { u, w, v: f64::NAN });
 }
 
 /// The section angle of a side hit at `u` whose offset from the axis is `e`, with `f` the
