@@ -724,14 +724,24 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 }
             });
             let merged = !(all && room);
-            ends.push(b);
+            let end = b;
+            ends.push(end);
             for w in ends.windows(2) {
                 let (a, b) = (w[0], w[1]);
                 if !(b > a && (merged || g.eval(0.5 * (a + b)) < 0.0)) {
                     continue;
                 }
-                // A profile's halves of the range wait for a query to reach them.
+                // A profile's halves of the range wait for a query to reach them; with no
+                // room for them, the rest of the range waits as one cell.
                 let profiled = !self.section.implicit_pieces().is_empty();
+                if profiled {
+                    if radial_cells.add_profile(self, (o, d), (a, b), r, (lo, hi)) {
+                        continue;
+                    }
+                    if radial_cells.add_profile_whole(self, (o, d), (a, end), r, (lo, hi)) {
+                        break;
+                    }
+                }
                 // Searched at once: what does not fit is counted.
                 let mut eager = |range| {
                     if !self.general_window_roots((o, d), range, r, (lo, hi), &mut found) {
@@ -740,7 +750,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 };
                 if !profiled {
                     eager((a, b));
-                } else if !radial_cells.add_profile(self, (o, d), (a, b), r, (lo, hi)) {
+                } else {
                     radial_cells::profile_halves(a, b)
                         .into_iter()
                         .for_each(eager);

@@ -470,7 +470,9 @@ mod tests {
     /// parabolas, cross the ray far beyond the pieces) lost 4 of 28 at 10 turns while the
     /// continuation's zeros took a search's room; and lenses of 10 to 40 turns seen from rays
     /// about it, to 162 crossings, where a half range holds more than its searches keep (129
-    /// of 162 without the split).
+    /// of 162 without the split); and flatter lenses whose rays cross the bounding disc more
+    /// often than the deferred cells hold windows (68 of 160 before the rest of a range waited
+    /// as one cell).
     #[test]
     fn twisted_profiles_seen_along_the_axis_keep_every_crossing() {
         let tau = std::f64::consts::TAU;
@@ -537,6 +539,21 @@ mod tests {
             most = most.max(keeps_every_crossing(&cyl, &ray, 4.0, &label));
         }
         assert!(most >= 160, "up to {most} crossings");
+        // Flatter lenses: the ray enters and leaves the section's bounding disc every half
+        // turn, more windows than the deferred cells hold (lost past six windows, counted,
+        // before the rest of a range waited as one cell).
+        for (ratio, turns) in [(0.634, 37.0), (0.5, 20.0), (0.3, 40.0)] {
+            let cyl = fiber(&lens, STRAIGHTISH, [0.05, 0.05 * ratio], [0.0, turns * tau]);
+            for k in 0..6 {
+                let ray = about(k);
+                let ray = Ray::new(
+                    DVec3::new(ray.origin.x, ray.origin.y, ray.origin.z * ratio),
+                    ray.dir,
+                );
+                let label = format!("ratio {ratio}, {turns} turns, ray {k}");
+                keeps_every_crossing(&cyl, &ray, 4.0, &label);
+            }
+        }
     }
 
     /// Asserts that `ray` gets every crossing of `cyl` up to `t1` (the brute-force march's, to
