@@ -126,7 +126,8 @@ impl RadialCells {
 
     /// Defers the General method's range `[a, b]` (where `phi` lies in the disc of radius
     /// `disc`) as two halves, each placed by bounds of `w` over it, and returns true; false
-    /// (nothing deferred) where there is no room for two and one more. A query for the nearest hit then
+    /// (nothing deferred) where the halves and one more cell, kept for the rest of the range
+    /// ([`Self::add_profile_whole`]), do not fit. A query for the nearest hit then
     /// usually searches the half that holds the entry and stops; a query for every hit reaches
     /// both, and their roots join the walk's list in order (as many as it holds, where one
     /// range's list of side roots could overflow and drop the nearest).
@@ -139,7 +140,6 @@ impl RadialCells {
         valid: (f64, f64),
     ) -> bool {
         let halves = profile_halves(a, b);
-        // One cell stays free for the rest of the range ([`Self::add_profile_whole`]).
         if self.cells.remaining_capacity() < halves.len() + 1 {
             return false;
         }
