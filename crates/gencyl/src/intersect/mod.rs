@@ -735,10 +735,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 // room for them, the rest of the range waits as one cell.
                 let profiled = !self.section.implicit_pieces().is_empty();
                 if profiled {
-                    if radial_cells.add_profile(self, (o, d), (a, b), r, (lo, hi)) {
+                    let halves = radial_cells::profile_halves(a, b);
+                    if radial_cells.add_profile(self, (o, d), &halves, (r, (lo, hi)), 1) {
                         continue;
                     }
-                    if radial_cells.add_profile_whole(self, (o, d), (a, end), r, (lo, hi)) {
+                    if radial_cells.add_profile(self, (o, d), &[(a, end)], (r, (lo, hi)), 0) {
                         break;
                     }
                 }

@@ -124,47 +124,29 @@ impl RadialCells {
         })
     }
 
-    /// Defers the General method's range `[a, b]` (where `phi` lies in the disc of radius
-    /// `disc`) as two halves, each placed by bounds of `w` over it, and returns true; false
-    /// (nothing deferred) where the halves and one more cell, kept for the rest of the range
-    /// ([`Self::add_profile_whole`]), do not fit. A query for the nearest hit then
-    /// usually searches the half that holds the entry and stops; a query for every hit reaches
-    /// both, and their roots join the walk's list in order (as many as it holds, where one
-    /// range's list of side roots could overflow and drop the nearest).
+    /// Defers `spans` of one of the General method's ranges (adjacent and ascending; `phi`
+    /// lies in the disc of radius `disc` there, or the spans are searched as if it did: `phi`
+    /// is finite on an oblique range), each placed by bounds of `w` over it, and returns true;
+    /// false (nothing deferred) where they and `spare` more cells do not fit. A range's two
+    /// halves ([`profile_halves`]) keep one spare cell, for the rest of the range when the
+    /// windows of the disc are more than the cells hold (deferred whole, and split when its
+    /// searches overflow). A query for the nearest hit then usually searches the half that
+    /// holds the entry and stops; a query for every hit reaches both, and their roots join the
+    /// walk's list in order (as many as it holds, where one range's list of side roots could
+    /// overflow and drop the nearest).
     pub(crate) fn add_profile<C: CrossSection, S: SweepRule>(
         &mut self,
         cyl: &GeneralizedCylinder<C, S>,
         (o, d): (DVec3, DVec3),
-        (a, b): (f64, f64),
-        disc: f64,
-        valid: (f64, f64),
+        spans: &[(f64, f64)],
+        (disc, valid): (f64, (f64, f64)),
+        spare: usize,
     ) -> bool {
-        let halves = profile_halves(a, b);
-        if self.cells.remaining_capacity() < halves.len() + 1 {
+        if self.cells.remaining_capacity() < spans.len() + spare {
             return false;
         }
         self.cells
-            .extend(profile_cells(cyl, (o, d), &halves, disc, valid));
-        true
-    }
-
-    /// Defers the General method's range `[a, b]` as one cell, and returns true; false
-    /// (nothing deferred) where there is no room. For the rest of a range whose windows of the
-    /// disc are more than the cells hold: searched whole when reached (in the disc or not:
-    /// `phi` is finite on an oblique range), split in two where its searches keep no more.
-    pub(crate) fn add_profile_whole<C: CrossSection, S: SweepRule>(
-        &mut self,
-        cyl: &GeneralizedCylinder<C, S>,
-        (o, d): (DVec3, DVec3),
-        (a, b): (f64, f64),
-        disc: f64,
-        valid: (f64, f64),
-    ) -> bool {
-        if self.cells.is_full() {
-            return false;
-        }
-        self.cells
-            .extend(profile_cells(cyl, (o, d), &[(a, b)], disc, valid));
+            .extend(profile_cells(cyl, (o, d), spans, disc, valid));
         true
     }
 
