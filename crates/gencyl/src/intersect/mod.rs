@@ -701,6 +701,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             radius: r,
         };
         let mut found = ArrayVec::new();
+        let profiled = !self.section.implicit_pieces().is_empty();
         for (a, b) in prefilter::candidate_ranges(self, o, d, false) {
             let (a, b) = widen(a, b, lo, hi);
             if !self.oblique(d, a, b) {
@@ -733,7 +734,6 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 }
                 // A profile's halves of the range wait for a query to reach them; with no
                 // room for them, the rest of the range waits as one cell.
-                let profiled = !self.section.implicit_pieces().is_empty();
                 if profiled {
                     let halves = radial_cells::profile_halves(a, b);
                     if radial_cells.add_profile(self, (o, d), &halves, (r, (lo, hi)), 1) {

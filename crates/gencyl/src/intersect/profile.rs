@@ -242,6 +242,15 @@ mod tests {
         DVec2::new(x, y)
     }
 
+    /// A lens of two parabolic arcs (quadratics degree-raised to cubics) through `(+-1, 0)`,
+    /// `0.4` thick.
+    fn lens() -> Vec<DVec2> {
+        let quad = |a: DVec2, q: DVec2, b: DVec2| [a, (a + 2.0 * q) / 3.0, (2.0 * q + b) / 3.0];
+        let mut lens = quad(v(1.0, 0.0), v(0.0, 0.8), v(-1.0, 0.0)).to_vec();
+        lens.extend(quad(v(-1.0, 0.0), v(0.0, -0.8), v(1.0, 0.0)));
+        lens
+    }
+
     /// A 2:1 ribbon with corners rounded to `c` (quarter circles), its straight sides' inner
     /// control points uneven.
     fn ribbon(c: f64) -> Vec<DVec2> {
@@ -285,31 +294,28 @@ mod tests {
     /// corners), a lens of two quadratic arcs meeting at corners (conics), and random star
     /// loops (six to nine pieces of random radius and tangent length).
     fn profiles(rng: &mut Lcg) -> Vec<(String, Vec<DVec2>)> {
-        let mut out = Vec::new();
-        out.push(("trilobal".into(), trilobal()));
-        out.push((
-            "kidney".into(),
-            vec![
-                v(1.0, 0.0),
-                v(1.0, 0.9),
-                v(0.45, 0.25),
-                v(0.0, 0.25),
-                v(-0.45, 0.25),
-                v(-1.0, 0.9),
-                v(-1.0, 0.0),
-                v(-1.0, -0.5),
-                v(-0.6, -0.85),
-                v(0.0, -0.85),
-                v(0.6, -0.85),
-                v(1.0, -0.5),
-            ],
-        ));
-        out.push(("ribbon".into(), ribbon(0.3)));
-        let quad = |a: DVec2, q: DVec2, b: DVec2| [a, (a + 2.0 * q) / 3.0, (2.0 * q + b) / 3.0];
-        let mut lens = Vec::new();
-        lens.extend(quad(v(1.0, 0.0), v(0.0, 0.8), v(-1.0, 0.0)));
-        lens.extend(quad(v(-1.0, 0.0), v(0.0, -0.8), v(1.0, 0.0)));
-        out.push(("lens".into(), lens));
+        let mut out: Vec<(String, Vec<DVec2>)> = vec![
+            ("trilobal".into(), trilobal()),
+            (
+                "kidney".into(),
+                vec![
+                    v(1.0, 0.0),
+                    v(1.0, 0.9),
+                    v(0.45, 0.25),
+                    v(0.0, 0.25),
+                    v(-0.45, 0.25),
+                    v(-1.0, 0.9),
+                    v(-1.0, 0.0),
+                    v(-1.0, -0.5),
+                    v(-0.6, -0.85),
+                    v(0.0, -0.85),
+                    v(0.6, -0.85),
+                    v(1.0, -0.5),
+                ],
+            ),
+            ("ribbon".into(), ribbon(0.3)),
+            ("lens".into(), lens()),
+        ];
         for i in 0..4 {
             let n = 6 + i % 4;
             let anchors: Vec<(DVec2, DVec2, f64)> = (0..n)
@@ -506,9 +512,7 @@ mod tests {
                 ),
             ),
         ];
-        let quad = |a: DVec2, q: DVec2, b: DVec2| [a, (a + 2.0 * q) / 3.0, (2.0 * q + b) / 3.0];
-        let mut lens = quad(v(1.0, 0.0), v(0.0, 0.8), v(-1.0, 0.0)).to_vec();
-        lens.extend(quad(v(-1.0, 0.0), v(0.0, -0.8), v(1.0, 0.0)));
+        let lens = lens();
         cases.push((
             lens.clone(),
             10.0,

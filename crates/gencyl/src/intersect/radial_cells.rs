@@ -225,9 +225,7 @@ impl RadialCells {
         let _ = self.free.try_push(i);
         ArrayVec::new()
     }
-}
 
-impl RadialCells {
     /// Whether a cell being isolated may give way to two.
     fn has_room(&self) -> bool {
         !self.cells.is_full() || !self.free.is_empty()

@@ -1951,7 +1951,6 @@ pub fn curve_3d() -> [DVec3; 4] {
     CURVE_3D.map(|p| v3(p[0], p[1], p[2]))
 }
 
-/// Three lobes (tips at radius 1, valleys at 0.5), C1 at the anchors, counter-clockwise.
 /// A flat ribbon (a textile tape): a 2:1 rectangle with corners rounded to 0.3, its straight
 /// sides with uneven inner control points (their equations are lines).
 pub fn ribbon_points() -> Vec<DVec2> {
@@ -1987,6 +1986,7 @@ pub fn parabolic_points() -> Vec<DVec2> {
         .collect()
 }
 
+/// Three lobes (tips at radius 1, valleys at 0.5), C1 at the anchors, counter-clockwise.
 pub fn trilobal_points() -> Vec<DVec2> {
     let mut anchors = Vec::new();
     for j in 0..6 {
