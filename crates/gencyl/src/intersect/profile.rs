@@ -196,7 +196,7 @@ pub(crate) fn piece_zeros<F: Function1D>(
         ranges += 1;
         let first = first_cells(f, x, y, opts);
         let mut us: ArrayVec<f64, MAX_ROOTS> = ArrayVec::new();
-        let found = isolate_in_cells(f, &first.cells, first.guesses, opts, &mut us);
+        let found = isolate_in_cells(f, &first.cells, first.hints, opts, &mut us);
         let m = 0.5 * (x + y);
         if found.overflow && x < m && m < y && ranges < 32 && todo.len() + 2 <= todo.capacity() {
             todo.push((m, y));

@@ -26,7 +26,9 @@ use super::round::CellCrossing;
 use super::{Radial, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
 use crate::real::Interval;
-use crate::roots::{Cell, FirstCells, Function1D, IsolateOptions, first_cells, isolate_in_cells};
+use crate::roots::{
+    Cell, FirstCells, Function1D, Hints, IsolateOptions, first_cells, isolate_in_cells,
+};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
@@ -35,8 +37,8 @@ use crate::sweep::SweepRule;
 /// one).
 pub(crate) const MAX_RADIAL_CELLS: usize = 12;
 
-/// A cell of [`Radial`] (`R = 1`) not yet isolated: its ends and values there, the estimates of
-/// roots that start Newton's method in it, and bounds of `w` over it: those of one Taylor model
+/// A cell of [`Radial`] (`R = 1`) not yet isolated: its ends and values there, the [`Hints`] of
+/// the samples that placed it (estimates of roots that start Newton's method), and bounds of `w` over it: those of one Taylor model
 /// of `w` over the whole range ([`GeneralizedCylinder::plane_w_model`]; over the parent cell
 /// for the halves of a split one), padded by
 /// `1e-9 max|a'| / |d|` and `1e-12 |w|`. The model encloses `w` for the ray through the
@@ -55,9 +57,8 @@ struct Deferred {
 /// What a deferred cell holds.
 #[derive(Clone, Copy, Debug)]
 enum Work {
-    /// A cell of [`Radial`] (`R = 1`), with the estimates of roots that start Newton's method
-    /// in it.
-    Radial { cell: Cell, guesses: [f64; 2] },
+    /// A cell of [`Radial`] (`R = 1`), with the [`Hints`] of the samples that placed it.
+    Radial { cell: Cell, hints: Hints },
     /// Half of a range of the General method's where `phi` lies in the section's bounding
     /// disc of radius `disc` ([`GeneralizedCylinder::general_window_roots`]): every piece of the
     /// section is searched on it when it is reached, roots `u` kept in `valid`.
@@ -99,11 +100,11 @@ impl RadialCells {
         out: &mut SideRoots,
     ) {
         let (f, opts) = unit_radial(cyl, (o, d));
-        let FirstCells { cells, guesses } = first_cells(&f, a, b, &opts);
+        let FirstCells { cells, hints } = first_cells(&f, a, b, &opts);
         let room = self.cells.remaining_capacity() >= cells.len();
         if !self.lazy || !room {
             let mut us = ArrayVec::new();
-            let found = isolate_in_cells(&f, &cells, guesses, &opts, &mut us);
+            let found = isolate_in_cells(&f, &cells, hints, &opts, &mut us);
             if !found.overflow || !room {
                 if found.overflow && found.complete {
                     crate::budget::note_exhausted();
@@ -112,8 +113,7 @@ impl RadialCells {
                 return;
             }
         }
-        self.cells
-            .extend(place(cyl, (o, d), (a, b), &cells, guesses));
+        self.cells.extend(place(cyl, (o, d), (a, b), &cells, hints));
     }
 
     /// The deferred cells: index, lower and upper bound of `w`, and what each holds.
@@ -185,8 +185,8 @@ impl RadialCells {
         (o, d): (DVec3, DVec3),
         out: &mut SideRoots,
     ) -> ArrayVec<usize, 3> {
-        let (cell, guesses) = match self.cells[i].work {
-            Work::Radial { cell, guesses } => (cell, guesses),
+        let (cell, hints) = match self.cells[i].work {
+            Work::Radial { cell, hints } => (cell, hints),
             Work::Profile { range, disc, valid } => {
                 let mut found = Found::new();
                 let all = cyl.general_window_roots((o, d), range, disc, valid, &mut found);
@@ -207,14 +207,14 @@ impl RadialCells {
         };
         let (f, opts) = unit_radial(cyl, (o, d));
         let mut us = ArrayVec::new();
-        let found = isolate_in_cells(&f, &[cell], guesses, &opts, &mut us);
+        let found = isolate_in_cells(&f, &[cell], hints, &opts, &mut us);
         let (a, b, fa, fb) = cell;
         let mid = 0.5 * (a + b);
         if found.overflow {
             if self.has_room() && a < mid && mid < b {
                 let fm = f.eval(mid);
                 let halves = [(a, mid, fa, fm), (mid, b, fm, fb)];
-                let placed = place(cyl, (o, d), (a, b), &halves, guesses);
+                let placed = place(cyl, (o, d), (a, b), &halves, hints.for_part());
                 return self.replace(i, [placed[0], placed[1]]);
             }
             if found.complete {
@@ -309,14 +309,14 @@ fn place<C: CrossSection, S: SweepRule>(
     (o, d): (DVec3, DVec3),
     (a, b): (f64, f64),
     cells: &[Cell],
-    guesses: [f64; 2],
+    hints: Hints,
 ) -> ArrayVec<Deferred, 3> {
     let spans: ArrayVec<(f64, f64), 3> = cells.iter().map(|c| (c.0, c.1)).collect();
     cells
         .iter()
         .zip(w_bounds(cyl, (o, d), (a, b), &spans))
         .map(|(&cell, w)| Deferred {
-            work: Work::Radial { cell, guesses },
+            work: Work::Radial { cell, hints },
             w,
         })
         .collect()
