@@ -657,7 +657,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     ) {
         let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
         if method == Method::Round {
-            for (a, b) in prefilter::candidate_ranges(self, o, d, true) {
+            for (a, b) in prefilter::candidate_ranges(self, o, d) {
                 let range = widen(a, b, lo, hi);
                 round::roots(self, o, d, range, entries_after, out, deferred);
             }
@@ -668,7 +668,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 return;
             }
             let quad = branches::Quadric::new(self, o, d);
-            for (a, b) in prefilter::candidate_ranges(self, o, d, false) {
+            for (a, b) in prefilter::candidate_ranges(self, o, d) {
                 let (a, b) = widen(a, b, lo, hi);
                 if self.oblique(d, a, b) {
                     // Away from perpendicular the roots of `g` are simple and well apart, and
@@ -702,7 +702,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         };
         let mut found = ArrayVec::new();
         let profiled = !self.section.implicit_pieces().is_empty();
-        for (a, b) in prefilter::candidate_ranges(self, o, d, false) {
+        for (a, b) in prefilter::candidate_ranges(self, o, d) {
             let (a, b) = widen(a, b, lo, hi);
             if !self.oblique(d, a, b) {
                 prism::roots(self, o, d, (a, b), out);
@@ -1156,7 +1156,7 @@ mod tests {
     /// reference isolator (intervals, halving) on the frame formula.
     fn roots_both_ways(cyl: &Cyl, o: DVec3, d: DVec3) -> (Vec<f64>, Vec<f64>) {
         let (mut fast, mut reference) = (Vec::new(), Vec::new());
-        for (a, b) in prefilter::candidate_ranges(cyl, o, d, false) {
+        for (a, b) in prefilter::candidate_ranges(cyl, o, d) {
             let (a, b) = widen(a, b, -U_MARGIN, 1.0 + U_MARGIN);
             fast.extend(cyl.radial_roots_between(o, d, 1.0, a, b));
             let mut us = ArrayVec::new();
@@ -1398,7 +1398,7 @@ mod tests {
                 let o = target - 0.3 * d;
                 let mut opts = cyl.radial_options(d, 1.0);
                 opts.max_evaluations = 300;
-                for (a, b) in prefilter::candidate_ranges(&cyl, o, d, false) {
+                for (a, b) in prefilter::candidate_ranges(&cyl, o, d) {
                     let (a, b) = widen(a, b, -U_MARGIN, 1.0 + U_MARGIN);
                     let g = Radial {
                         cyl: &cyl,
