@@ -369,10 +369,13 @@ pub(crate) type Cell = (f64, f64, f64, f64);
 /// midpoint `m`, or where `f(m) >= 0` (a ray through a fiber off the middle of its range) the
 /// vertex of the parabola through `lo`, `m` and `hi` when that parabola dips below zero (one
 /// more value; a ray that passes by seldom pays it). Only cut points where `f < 0`, so never
-/// at a root; otherwise the whole interval, as for any function. Its hints: `[r1, r2]` (NaN
-/// without a cut), which on the ponytail's elliptical fibers start Newton's method closer
-/// to the roots than the sides' linear models do (3% fewer instructions); and for the whole
-/// interval whether a value sampled inside lies below both ends' ([`Hints::dips`]).
+/// at a root; otherwise the whole interval, as for any function. Its hints: estimates of the
+/// two roots (NaN without a cut), which start Newton's method closer to the roots than the
+/// sides' linear models do (3% fewer instructions on the ponytail's elliptical fibers): on a
+/// side that was cut, the zero of the parabola through its own ends and `x` (`local_zero`; on
+/// the elliptical ponytail a median 5e-7 from the root, 1.1% fewer instructions in its fiber
+/// tests), else `r1` or `r2`; and for the whole interval whether a value sampled inside lies
+/// below both ends' ([`Hints::dips`]).
 fn u_shaped_cells(
     point: &impl Fn(f64) -> f64,
     (lo, hi): (f64, f64),
@@ -443,11 +446,38 @@ fn u_shaped_cells(
         cells.push((p, q, fp, fq));
     }
     cells.push((q, hi, fq, fhi));
+    // Each side's estimate from the parabola through its own ends and `x`, where it was cut.
+    let left = if p < x {
+        local_zero((lo, flo), (p, fp), (x, fx))
+    } else {
+        None
+    };
+    let right = if x < q {
+        local_zero((q, fq), (hi, fhi), (x, fx))
+    } else {
+        None
+    };
     let hints = Hints {
-        guesses: [r1, r2],
+        guesses: [left.unwrap_or(r1), right.unwrap_or(r2)],
         dips: false,
     };
     (cells, hints)
+}
+
+/// The zero in `(a, b)` of the parabola through `(a, fa)`, `(b, fb)` and `(c, fc)` (`c` outside
+/// `[a, b]`), if it has one there: with `t = u - a` and the divided differences
+/// `d1 = (fb - fa) / (b - a)`, `d2 = ((fc - fb) / (c - b) - d1) / (c - a)`, the parabola is
+/// `fa + (d1 - d2 (b - a)) t + d2 t^2`, solved without cancellation.
+fn local_zero((a, fa): (f64, f64), (b, fb): (f64, f64), (c, fc): (f64, f64)) -> Option<f64> {
+    let d1 = (fb - fa) / (b - a);
+    let d2 = ((fc - fb) / (c - b) - d1) / (c - a);
+    let (qa, qb, qc) = (d2, d1 - d2 * (b - a), fa);
+    let disc = qb * qb - 4.0 * qa * qc;
+    let k = -0.5 * (qb + disc.sqrt().copysign(qb));
+    [k / qa, qc / k]
+        .into_iter()
+        .map(|t| a + t)
+        .find(|&u| u > a && u < b)
 }
 
 /// A smooth map of the plane with enclosures over boxes, for [`isolate_roots_2d`].
@@ -1406,6 +1436,71 @@ mod tests {
         let u = |u: f64| (u - 0.3) * (u - 0.7);
         let (cells, hints) = u_shaped_cells(&u, (0.0, 1.0), (u(0.0), u(1.0)));
         assert!(cells.len() == 3 && !hints.dips, "{cells:?}");
+    }
+
+    /// `local_zero` is the zero in the cell of the parabola through the three points: exact
+    /// (to 1e-15 of the cell) where `f` is that parabola, for cells left and right of the
+    /// third point, narrow and wide, roots near either end; `None` where the parabola's zero
+    /// lies outside the cell. On a U-shaped cubic (a parabola tilted), the estimates of
+    /// `u_shaped_cells` (from each side's own ends and the middle) are closer to the roots
+    /// than the zeros of the parabola through the whole interval's ends and middle (the
+    /// median error four times smaller at least).
+    #[test]
+    fn local_zeros_are_the_sides_parabolas_zeros() {
+        let mut rng = crate::test_rng::Lcg(61);
+        let mut rnd = || rng.next();
+        for case in 0..2000 {
+            let (r1, r2) = (0.4 * rnd(), 0.6 + 0.4 * rnd());
+            let k = 10f64.powf(-3.0 + 6.0 * rnd());
+            let f = |u: f64| k * (u - r1) * (u - r2);
+            let width = 10f64.powf(-6.0 * rnd());
+            // A cell about r1 (f falls through zero), the third point to its right.
+            let a = r1 - width * rnd();
+            let b = a + width;
+            if !(b < 0.5) {
+                continue;
+            }
+            let z = local_zero((a, f(a)), (b, f(b)), (0.5, f(0.5))).expect("a zero");
+            assert!(
+                (z - r1).abs() <= 1e-15 + 1e-13 * width,
+                "case {case}: {z} {r1}"
+            );
+            // A cell about r2, the third point to its left.
+            let a = r2 - width * rnd();
+            let b = a + width;
+            let z = local_zero((a, f(a)), (b, f(b)), (0.5, f(0.5))).expect("a zero");
+            assert!(
+                (z - r2).abs() <= 1e-15 + 1e-13 * width,
+                "case {case}: {z} {r2}"
+            );
+        }
+        // The parabola through (0, 1), (0.1, 0.5), (0.5, 0.2) stays positive: no zero.
+        assert_eq!(local_zero((0.0, 1.0), (0.1, 0.5), (0.5, 0.2)), None);
+        // A U that is not a parabola: the sides' estimates beat the whole interval's.
+        let (mut local, mut global) = (Vec::new(), Vec::new());
+        for case in 0..200 {
+            let (r1, r2) = (0.1 + 0.3 * rnd(), 0.6 + 0.3 * rnd());
+            let tilt = 0.6 * rnd() - 0.3;
+            let f = |u: f64| (u - r1) * (u - r2) * (1.0 + tilt * (u - 0.5));
+            let (cells, hints) = u_shaped_cells(&f, (0.0, 1.0), (f(0.0), f(1.0)));
+            assert_eq!(cells.len(), 3, "case {case}");
+            let (m, fm) = (0.5, f(0.5));
+            // The zeros of the whole interval's parabola (through 0, m and 1).
+            let (c2, c1) = ((f(0.0) - 2.0 * fm + f(1.0)) / 0.5, f(1.0) - f(0.0));
+            let disc = (c1 * c1 - 4.0 * c2 * fm).sqrt();
+            let whole = [m + (-c1 - disc) / (2.0 * c2), m + (-c1 + disc) / (2.0 * c2)];
+            for (i, r) in [r1, r2].into_iter().enumerate() {
+                local.push((hints.guesses[i] - r).abs());
+                global.push((whole[i] - r).abs());
+            }
+        }
+        local.sort_by(f64::total_cmp);
+        global.sort_by(f64::total_cmp);
+        let (local, global) = (local[local.len() / 2], global[global.len() / 2]);
+        assert!(
+            4.0 * local < global,
+            "medians: sides {local:e}, whole {global:e}"
+        );
     }
 
     /// The Taylor-model isolator and the interval reference find the same roots, to full
