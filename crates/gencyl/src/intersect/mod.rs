@@ -912,9 +912,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         }
     }
 
-    /// Records the root at `u` of a unit-circle section, with `v` the angle of `phi(u)`.
+    /// Records the root at `u` of a unit-circle section, with `v` the angle of `phi(u)` (from
+    /// its homogeneous coordinates, [`Self::homogeneous_phi_r`]: no unit frame is formed).
     pub(crate) fn push_circle_root(&self, o: DVec3, d: DVec3, u: f64, out: &mut SideRoots) {
-        let (qphi, q) = self.scaled_phi_r(o, d, u);
+        let (qphi, q) = self.homogeneous_phi_r(o, d, u);
         let w = self.refined_w(o, d, u);
         if w.is_finite() {
             let v = crate::section::angle(DVec2::new(qphi.x / q, qphi.y / q));
