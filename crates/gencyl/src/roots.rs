@@ -133,9 +133,9 @@ pub(crate) struct Isolated {
 /// The cells [`isolate_roots`] starts from on `[lo, hi]`, in ascending order: the whole
 /// interval, or with [`IsolateOptions::u_shaped`] the cells of `u_shaped_cells`; and what
 /// its samples tell their isolation ([`Hints`]: estimates of roots, where Newton's method
-/// starts in a cell that holds one, and whether `f` dipped inside). The cells may be isolated one by one, in any order, by [`isolate_in_cells`]: a
-/// query that wants only the nearest crossing along a ray takes them by distance and stops
-/// early.
+/// starts in a cell that holds one, and whether `f` dipped inside). The cells may be isolated
+/// one by one, in any order, by [`isolate_in_cells`]: a query that wants only the nearest
+/// crossing along a ray takes them by distance and stops early.
 pub(crate) fn first_cells<F: Function1D>(
     f: &F,
     lo: f64,
@@ -177,8 +177,8 @@ pub(crate) struct Hints {
     /// seldom excludes zero, so the cell's isolation goes straight to the model of `f` and `f'`
     /// (whose value part is that model, to the bit). The roots are the same either way; on the
     /// elliptical ponytail's camera rays this takes 0.8% off the fiber tests' instructions
-    /// (where the value model came first for every cell with one sign at both ends, about half
-    /// of those models failed, and rays passing close by a fiber made most of them).
+    /// (every cell with one sign at both ends took the value model first, and 777 of the 1,831
+    /// failed on ranges that held no crossing).
     pub dips: bool,
 }
 

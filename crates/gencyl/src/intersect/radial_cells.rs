@@ -38,10 +38,10 @@ use crate::sweep::SweepRule;
 pub(crate) const MAX_RADIAL_CELLS: usize = 12;
 
 /// A cell of [`Radial`] (`R = 1`) not yet isolated: its ends and values there, the [`Hints`] of
-/// the samples that placed it (estimates of roots that start Newton's method), and bounds of `w` over it: those of one Taylor model
-/// of `w` over the whole range ([`GeneralizedCylinder::plane_w_model`]; over the parent cell
-/// for the halves of a split one), padded by
-/// `1e-9 max|a'| / |d|` and `1e-12 |w|`. The model encloses `w` for the ray through the
+/// the samples that placed it (estimates of roots that start Newton's method), and bounds of
+/// `w` over it: those of one Taylor model of `w` over the whole range
+/// ([`GeneralizedCylinder::plane_w_model`]; over the parent cell for the halves of a split
+/// one), padded by `1e-9 max|a'| / |d|` and `1e-12 |w|`. The model encloses `w` for the ray through the
 /// rounded shifted origin; what the pad covers is far smaller: that origin's rounding off the
 /// ray (at most `1e3` times its ulp over `|d|`, at the least obliqueness the Radial method
 /// isolates, `|a'.d| >= 1e-3 max|a'| |d|`), and a root's refinement in `w`
