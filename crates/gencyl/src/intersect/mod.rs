@@ -656,8 +656,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         (deferred, radial_cells): (&mut round::Deferred, &mut radial_cells::RadialCells),
     ) {
         let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
+        // The Radial and General methods take the prefilter's estimate of the dip whole only
+        // where the ray is oblique across it.
+        let oblique_core = |a: f64, c: f64| {
+            let (a, c) = widen(a, c, lo, hi);
+            self.oblique(d, a, c)
+        };
         if method == Method::Round {
-            for (a, b) in prefilter::candidate_ranges(self, o, d) {
+            for (a, b) in prefilter::candidate_ranges(self, o, d, |_, _| true) {
                 let range = widen(a, b, lo, hi);
                 round::roots(self, o, d, range, entries_after, out, deferred);
             }
@@ -668,7 +674,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 return;
             }
             let quad = branches::Quadric::new(self, o, d);
-            for (a, b) in prefilter::candidate_ranges(self, o, d) {
+            for (a, b) in prefilter::candidate_ranges(self, o, d, oblique_core) {
                 let (a, b) = widen(a, b, lo, hi);
                 if self.oblique(d, a, b) {
                     // Away from perpendicular the roots of `g` are simple and well apart, and
@@ -702,7 +708,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         };
         let mut found = ArrayVec::new();
         let profiled = !self.section.implicit_pieces().is_empty();
-        for (a, b) in prefilter::candidate_ranges(self, o, d) {
+        for (a, b) in prefilter::candidate_ranges(self, o, d, oblique_core) {
             let (a, b) = widen(a, b, lo, hi);
             if !self.oblique(d, a, b) {
                 prism::roots(self, o, d, (a, b), out);
@@ -1157,7 +1163,7 @@ mod tests {
     /// reference isolator (intervals, halving) on the frame formula.
     fn roots_both_ways(cyl: &Cyl, o: DVec3, d: DVec3) -> (Vec<f64>, Vec<f64>) {
         let (mut fast, mut reference) = (Vec::new(), Vec::new());
-        for (a, b) in prefilter::candidate_ranges(cyl, o, d) {
+        for (a, b) in prefilter::candidate_ranges(cyl, o, d, |_, _| true) {
             let (a, b) = widen(a, b, -U_MARGIN, 1.0 + U_MARGIN);
             fast.extend(cyl.radial_roots_between(o, d, 1.0, a, b));
             let mut us = ArrayVec::new();
@@ -1399,7 +1405,7 @@ mod tests {
                 let o = target - 0.3 * d;
                 let mut opts = cyl.radial_options(d, 1.0);
                 opts.max_evaluations = 300;
-                for (a, b) in prefilter::candidate_ranges(&cyl, o, d) {
+                for (a, b) in prefilter::candidate_ranges(&cyl, o, d, |_, _| true) {
                     let (a, b) = widen(a, b, -U_MARGIN, 1.0 + U_MARGIN);
                     let g = Radial {
                         cyl: &cyl,

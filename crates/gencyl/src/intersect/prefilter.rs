@@ -126,15 +126,21 @@ fn reach_polynomial<C: CrossSection, S: SweepRule>(
 /// one short range about the closest approach. That range is cut out first from an estimate
 /// ([`core_range`]) and kept whole, without testing, and only the rest of `[0, 1]` is searched
 /// by subdivision: every `u` with `Q(u) <= 0` lies in a range either way, and the estimate
-/// saves the many halvings that find the dip's ends. Every method takes it: the Round method's
-/// product isolation costs little more on the wider range, and since the Radial and General
-/// methods start from samples of the range (`roots::first_cells`), not an enclosure of all
-/// of it, the subdivision's tighter cover cost them more than it saved (the elliptical
-/// ponytail's fiber tests 2.5% fewer instructions with the cut, the three-lobed one's 1.3%).
+/// saves the many halvings that find the dip's ends. The caller decides where it takes the
+/// estimate (`take_core(a, c)`; otherwise the whole of `[0, 1]` is subdivided): the Round
+/// method always (its product isolation costs little more on the wider range); the Radial and
+/// General methods where the ray is oblique across the estimate, since they start from samples
+/// of a range (`roots::first_cells`), not an enclosure of all of it, and the subdivision's
+/// tighter cover cost them more than it saved (the elliptical ponytail's fiber tests 2.5%
+/// fewer instructions with the estimate, the three-lobed one's 1.3%). Where the ray is
+/// perpendicular to the axis somewhere in the estimate, the wider range would send more of
+/// their search to the fallbacks for such ranges (the General method's prism search has a
+/// budget, and a review found crossings lost to it), so the tight cover stays there.
 pub(crate) fn candidate_ranges<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
     d: DVec3,
+    take_core: impl Fn(f64, f64) -> bool,
 ) -> ArrayVec<(f64, f64), MAX_RANGES> {
     let [l0, l1] = cyl.sweep.scale_bound();
     let r_out = cyl.section.bounding_radius();
@@ -145,7 +151,7 @@ pub(crate) fn candidate_ranges<C: CrossSection, S: SweepRule>(
     // Rounding in forming the coefficients: relative to the terms that cancel in them.
     let eps = 1e-12 * size;
     let mut out: ArrayVec<(f64, f64), MAX_RANGES> = ArrayVec::new();
-    match core_range(&power) {
+    match core_range(&power).filter(|&(a, c)| take_core(a, c)) {
         Some((a, c)) => {
             if a > 0.0 {
                 cover(&restrict(&b, 0.0, a), (0.0, a), eps, &mut out);
@@ -309,7 +315,7 @@ mod tests {
                 (across + tilt * t).normalize()
             };
             let o = p - d * rng.range(0.5, 3.0);
-            let ranges = candidate_ranges(&cyl, o, d);
+            let ranges = candidate_ranges(&cyl, o, d, |_, _| true);
             let (power, _) = reach_polynomial(&cyl, o, d, [r, r]);
             cut += usize::from(core_range(&power).is_some());
             for i in 0..=4000 {

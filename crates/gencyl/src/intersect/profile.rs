@@ -586,6 +586,108 @@ mod tests {
         got.len()
     }
 
+    /// The twentieth session's review: with the prefilter's estimate of the dip kept whole for
+    /// the General method, ranges across which the ray turns perpendicular to the axis went to
+    /// the prism search, whose budget ran out on curved, twisted fibers: a trilobal fiber lost
+    /// its entry and exit (2 of 4 crossings, the nearest wrong), an elliptical one searched by
+    /// the General method its exit, another got a hit at `t = 6e12`. Each now has the
+    /// brute-force march's crossings, and nothing counts as a search that reached its bound.
+    #[test]
+    fn perpendicular_ranges_keep_their_crossings() {
+        let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+        let spec = |bezier, major: [f64; 2], minor: [f64; 2], rotation, caps, section| {
+            FiberSpec {
+                bezier,
+                major_radius: major,
+                minor_radius: minor,
+                rotation,
+                caps,
+                normal_hint: None,
+                section,
+            }
+            .build()
+            .unwrap()
+        };
+        let trilobal_fiber = spec(
+            [
+                p(0.0, 0.0, 0.0),
+                p(
+                    -0.5112116741981705,
+                    0.27709295480111673,
+                    0.41142788551797294,
+                ),
+                p(-0.375345456201153, -0.1485052736381695, 1.0779339787534292),
+                p(
+                    -0.4540396778886146,
+                    -0.14750828088976023,
+                    0.8786861088988209,
+                ),
+            ],
+            [0.013074510067377918; 2],
+            [0.0065530431302132566; 2],
+            [0.05622474267109867, 2.7114699402701627],
+            false,
+            Section::Loop(BezierLoop::new(&trilobal()).unwrap()),
+        );
+        let ray = Ray::new(
+            p(-0.5089822044965719, -0.4943691265271715, 1.1751806357179),
+            p(0.19300060840594685, 0.7997607154401413, -0.5684483821716865),
+        );
+        assert_eq!(
+            keeps_every_crossing(&trilobal_fiber, &ray, 1.0, "trilobal"),
+            4
+        );
+        // Elliptical fibers through the General method (`hits` asks for it).
+        let far = spec(
+            [
+                p(-4.85230662091328, -1.1357678362662778, -2.9697614724507333),
+                p(-5.095348433497311, -0.548823072449306, -3.329660305860823),
+                p(-5.8409311388006255, -0.5462538325371031, -3.053196898074393),
+                p(-5.640697982057114, -0.5344865448292432, -3.099760973378944),
+            ],
+            [0.0027772930239450882, 0.0019871393909629293],
+            [0.0014670927178996255, 0.001049697566946703],
+            [5.522607387020841, 7.559237989093693],
+            true,
+            Section::default(),
+        );
+        let far_ray = Ray::new(
+            p(-4.974478405626529, -0.49545721441430735, -3.254802457521059),
+            p(-2.251505333060871, -0.1323163029579858, 0.5235859314326179),
+        );
+        let exit = spec(
+            [
+                p(10.372710233866146, 0.9189549780796911, -7.626351419241093),
+                p(10.474387188860712, 0.8691234440147254, -7.765411542502829),
+                p(10.288090447739975, 1.1055001522030956, -7.597877627344154),
+                p(9.68175464047739, 1.491972918274573, -7.185635174725863),
+            ],
+            [0.01091978801226135, 0.008588308398340617],
+            [0.009585603312711338, 0.007538984945612707],
+            [2.086611467073371, 6.059009113482685],
+            true,
+            Section::default(),
+        );
+        let exit_ray = Ray::new(
+            p(10.606050682156845, 0.3776643774247366, -7.549994483171504),
+            p(
+                -0.34328001461626395,
+                0.9160228178721167,
+                -0.20751151462674214,
+            ),
+        );
+        for (cyl, ray, label) in [(&far, &far_ray, "far"), (&exit, &exit_ray, "exit")] {
+            let want = march(cyl, ray, 1.0);
+            let before = crate::budget::exhausted_here();
+            let got: Vec<f64> = hits(cyl, ray).iter().map(|h| h.t).collect();
+            assert_eq!(got.len(), want.len(), "{label}: {got:?}\nmarch {want:?}");
+            for (g, w) in got.iter().zip(&want) {
+                assert!((g - w).abs() < 1e-9, "{label}: {g} against {w}");
+            }
+            assert_eq!(crate::budget::exhausted_here(), before, "{label}: counted");
+        }
+    }
+
     /// The third review's stars, each with pieces that have no implicit equation (searched by
     /// the curve-curve subdivision), twisted by 23 and 36 turns, seen nearly along the axis:
     /// their half ranges hold more subdivision roots than the list keeps, which went unnoticed

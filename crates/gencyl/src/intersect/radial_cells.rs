@@ -425,7 +425,7 @@ mod tests {
             // The local ray, as `each_hit` makes it.
             let o = o - cyl.origin;
             let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
-            for (a, b) in prefilter::candidate_ranges(&cyl, o, d) {
+            for (a, b) in prefilter::candidate_ranges(&cyl, o, d, |_, _| true) {
                 let (a, b) = widen(a, b, lo, hi);
                 if !cyl.oblique(d, a, b) {
                     continue;
