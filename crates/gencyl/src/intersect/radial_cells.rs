@@ -3,9 +3,10 @@
 //!
 //! A ray through an elliptical fiber splits its `u` range into three cells
 //! ([`first_cells`]): the entry's, the middle (where `g` stays negative) and the exit's. Each
-//! is placed along the ray by an enclosure of `w(u) = a'.(a - o) / (a'.d)` over it (one Taylor
-//! model over the range, [`GeneralizedCylinder::plane_w_model`]; on these ranges the ray is
-//! [`super::OBLIQUE`], so `a'.d` keeps its sign), and isolated and polished only when a query
+//! is placed along the ray by an enclosure of `w(u) = a'.(a - o) / (a'.d)` over it (from the
+//! Bernstein forms of its numerator and denominator on the cell,
+//! [`GeneralizedCylinder::plane_w_bounds`]; on these ranges the ray is [`super::OBLIQUE`], so
+//! `a'.d` keeps its sign), and isolated and polished only when a query
 //! reaches its lower bound. A query that takes the nearest hit then pays for one cell's
 //! enclosures and one Newton solve, not three cells and two. A cell with more roots than one
 //! isolation keeps (a fiber twisted by many turns, seen along its axis) is split in two when
@@ -25,7 +26,6 @@ use super::curve_curve::Found;
 use super::round::CellCrossing;
 use super::{Radial, SideRoots};
 use crate::cylinder::GeneralizedCylinder;
-use crate::real::Interval;
 use crate::roots::{
     Cell, FirstCells, Function1D, Hints, IsolateOptions, first_cells, isolate_in_cells,
 };
@@ -39,10 +39,10 @@ pub(crate) const MAX_RADIAL_CELLS: usize = 12;
 
 /// A cell of [`Radial`] (`R = 1`) not yet isolated: its ends and values there, the [`Hints`] of
 /// the samples that placed it (estimates of roots that start Newton's method), and bounds of
-/// `w` over it: those of one Taylor model of `w` over the whole range
-/// ([`GeneralizedCylinder::plane_w_model`]; over the parent cell for the halves of a split
-/// one), padded by `1e-9 max|a'| / |d|` and `1e-12 |w|`. The model encloses `w` for the ray through the
-/// rounded shifted origin; what the pad covers is far smaller: that origin's rounding off the
+/// `w` over it ([`GeneralizedCylinder::plane_w_bounds`], about the ray's point in the normal
+/// plane at the middle of the range, or of the parent cell for the halves of a split one),
+/// padded by `1e-9 max|a'| / |d|` and `1e-12 |w|`. The bounds enclose `w` for the ray through
+/// the rounded shifted origin; what the pad covers is far smaller: that origin's rounding off the
 /// ray (at most `1e3` times its ulp over `|d|`, at the least obliqueness the Radial method
 /// isolates, `|a'.d| >= 1e-3 max|a'| |d|`), and a root's refinement in `w`
 /// ([`GeneralizedCylinder::refined_w`]: `|w'|` times a few ulps of `u`, about
@@ -322,23 +322,21 @@ fn place<C: CrossSection, S: SweepRule>(
         .collect()
 }
 
-/// Bounds of `w` over each of `spans` (within `[a, b]`) from one Taylor model of `w` over
-/// `[a, b]`, padded (see [`Deferred`]).
+/// Bounds of `w` over each of `spans` (within `[a, b]`), each from the Bernstein forms of its
+/// numerator and denominator on the span ([`GeneralizedCylinder::plane_w_bounds`], about the
+/// ray's point in the normal plane at the middle of `[a, b]`), padded (see [`Deferred`]).
 fn w_bounds<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     (o, d): (DVec3, DVec3),
     (a, b): (f64, f64),
     spans: &[(f64, f64)],
 ) -> ArrayVec<[f64; 2], 3> {
-    let (shift, model) = cyl.plane_w_model(o, d, a, b);
-    let m = 0.5 * (a + b);
+    let (shift, bounds) = cyl.plane_w_bounds(o, d, 0.5 * (a + b), spans);
     // max|a'| / |d|.
     let speed = cyl.q_scale(d) / d.length_squared();
-    spans
-        .iter()
-        .map(|&(x, y)| {
-            // t = u - m over the span, rounded outward.
-            let e = model.enclosure_over(Interval::exact(x, y) - Interval::exact(m, m));
+    bounds
+        .into_iter()
+        .map(|e| {
             let (lo, hi) = (shift + e.lo, shift + e.hi);
             let pad = 1e-9 * speed + 1e-12 * lo.abs().max(hi.abs());
             if lo.is_nan() || hi.is_nan() {
