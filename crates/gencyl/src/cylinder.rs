@@ -705,9 +705,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 
     /// [`Self::normal`] from the swept surface's partial derivatives, for any section and rule.
     fn swept_normal(&self, u: f64, v: f64) -> DVec3 {
-        let at = FrameAt::new(&self.axis, &self.framing, u);
-        let Frame { t: _, n, b } = at.frame;
-        let [_, dn, db] = at.derivatives();
+        let (Frame { t: _, n, b }, [_, dn, db]) =
+            FrameAt::frame_and_rates(&self.axis, &self.framing, u);
         let p = self.section.point(v);
         let dp = self.section.derivative(v);
         // c and dc/du: the rule differentiated in u with the section point held fixed.

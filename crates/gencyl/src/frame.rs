@@ -653,6 +653,26 @@ impl FrameAt {
         }
     }
 
+    /// The frame at `u` and `(t'(u), n'(u), b'(u))` ([`FrameAt::derivatives`]), what a
+    /// normal needs: for a projected frame from one evaluation of [`frame_r`] on dual numbers
+    /// (its values are the `f64` frame's to the bit), without the curvature and torsion that
+    /// [`FrameAt::new`] also computes.
+    pub fn frame_and_rates(axis: &CubicBezier, framing: &Framing, u: f64) -> (Frame, [DVec3; 3]) {
+        if let Framing::Projected(_) = framing {
+            let [t, n, b] = frame_r(axis, framing, Dual::var(u));
+            let value = |x: V3<Dual<f64>>| DVec3::new(x.x.v, x.y.v, x.z.v);
+            let frame = Frame {
+                t: value(t),
+                n: value(n),
+                b: value(b),
+            };
+            let rate = |x: V3<Dual<f64>>| DVec3::new(x.x.d, x.y.d, x.z.d);
+            return (frame, [rate(t), rate(n), rate(b)]);
+        }
+        let at = FrameAt::new(axis, framing, u);
+        (at.frame, at.derivatives())
+    }
+
     /// `(t'(u), n'(u), b'(u))` by the Frenet-Serret formulas with respect to `u`
     /// (seed 2.4, corrected by errata 2: the arc-length formulas times the speed `|a'(u)|`):
     /// `t' = |a'| kappa n`, `n' = |a'| (-kappa t + tau b)`, `b' = -|a'| tau n`; for a projected
@@ -1176,6 +1196,34 @@ mod tests {
     /// differences of the frame (step 1e-6: truncation ~1e-12 times the third derivative,
     /// rounding ~1e-16 / 1e-6; 1e-7 relative leaves a wide margin), also where the axis is
     /// nearly inflected and its speed is far from 1; and they are not the Frenet-Serret ones.
+    /// [`FrameAt::frame_and_rates`] is [`FrameAt::new`]'s frame and derivatives to the bit,
+    /// under every framing (a projected frame's by its own evaluation), at the ends, near an
+    /// inflection and across the segment.
+    #[test]
+    fn frame_and_rates_are_frame_at_to_the_bit() {
+        let fixed = Framing::Fixed(Box::new(Frame {
+            t: DVec3::X,
+            n: DVec3::Y,
+            b: DVec3::Z,
+        }));
+        for (name, c) in [("helix", helix_like()), ("S", near_inflection())] {
+            for framing in [
+                Framing::Projected(DVec3::new(0.3, -0.8, 0.5)),
+                Framing::Projected(DVec3::Z),
+                Framing::Frenet,
+                fixed.clone(),
+            ] {
+                for i in 0..=64 {
+                    let u = i as f64 / 64.0;
+                    let at = FrameAt::new(&c, &framing, u);
+                    let (frame, rates) = FrameAt::frame_and_rates(&c, &framing, u);
+                    assert_eq!(frame, at.frame, "{name}, {framing:?}: the frame at {u}");
+                    assert_eq!(rates, at.derivatives(), "{name}, {framing:?}: rates at {u}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn projected_frame_derivatives_match_finite_differences() {
         for (name, c, r) in [
