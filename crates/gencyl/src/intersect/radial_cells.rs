@@ -263,7 +263,7 @@ pub(crate) fn profile_halves(a: f64, b: f64) -> ArrayVec<(f64, f64), 2> {
 }
 
 /// The General method's `halves` (adjacent, ascending) to defer, each placed by bounds of `w`
-/// from one model over their union. Roots of the subdivision's pieces may converge just
+/// ([`w_bounds`], about the middle of their union). Roots of the subdivision's pieces may converge just
 /// outside a half: its bounds are taken over the half grown by a hundredth of the union at
 /// each end (within the union; a half of a half split again is grown within its parent).
 fn profile_cells<C: CrossSection, S: SweepRule>(
@@ -368,7 +368,7 @@ mod tests {
     use crate::test_rng::Lcg as Rng;
 
     /// Every deferred cell's bounds of `w` hold `w(u) = a'.(a - o)/(a'.d)` at points across
-    /// the cell (plain `f64` evaluations, apart from the Taylor model that bounds it) and the
+    /// the cell (plain `f64` evaluations, apart from the Bernstein forms that bound it) and the
     /// `w` of each root isolated in it; a cell said to hold a crossing holds an odd number of
     /// roots; and the cells' roots, isolated one by one, are the eager isolation's to the bit.
     /// Elliptical fibers, twisted and tapering, on curved axes (Frenet and projected frames),
