@@ -85,11 +85,18 @@ impl<const K: usize> Bernstein<K> {
         (Bernstein(left), Bernstein(right))
     }
 
-    /// The coefficients on `[s0, s1]` (reparametrised to `[0, 1]`).
+    /// The coefficients on `[s0, s1]` (reparametrised to `[0, 1]`). Below 0 (a span reaching
+    /// just past the start) the split at `s0` comes first, so that the second split's point
+    /// stays in `[0, 1]`: splitting at `s1` first would make the second an extrapolation by
+    /// `s0 / s1`, far outside `[0, 1]` where `0 < s1 << -s0`, and no interval at all where
+    /// `s1 = 0`.
     #[inline]
     pub fn restrict(&self, s0: f64, s1: f64) -> Self {
         if s0 == 0.0 && s1 == 1.0 {
             return *self;
+        }
+        if s0 < 0.0 {
+            return self.split(s0).1.split((s1 - s0) / (1.0 - s0)).0;
         }
         let right = if s1 == 1.0 { *self } else { self.split(s1).0 };
         if s0 == 0.0 || s1 == 0.0 {
@@ -263,6 +270,38 @@ mod tests {
             (3.0, 0.0),
             "constant"
         );
+    }
+
+    /// Restrictions to spans reaching below 0 (by `1e-11`, a search margin, or by 0.3) and
+    /// ending at 0, just above it, inside or past 1 bound and evaluate the polynomial there:
+    /// splitting at the end first would extrapolate the second split by `s0 / s1` (or, ending
+    /// at 0, keep only the value at 0).
+    #[test]
+    fn restrictions_below_zero_match_the_power_form() {
+        let mut rng = Lcg(11);
+        for _ in 0..200 {
+            let a: [f64; 6] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+            let p = from_power(&a);
+            for s0 in [-1e-11, -1e-6, -0.3] {
+                for s1 in [0.0, 1e-18, 1e-13, 1e-3, 0.5, 1.0, 1.0 + 1e-11] {
+                    let part = p.restrict(s0, s1);
+                    let (lo, hi) = part.range();
+                    for i in 0..=16 {
+                        let s = i as f64 / 16.0;
+                        let want = power(&a, s0 + (s1 - s0) * s);
+                        assert!(
+                            (part.eval(s) - want).abs() < 1e-12,
+                            "[{s0}, {s1}] at {s}: {} against {want}",
+                            part.eval(s)
+                        );
+                        assert!(
+                            lo - 1e-12 <= want && want <= hi + 1e-12,
+                            "bounds on [{s0}, {s1}]"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]

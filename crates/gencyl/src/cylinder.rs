@@ -1168,11 +1168,14 @@ mod tests {
     /// evaluations of the control points' curve, to `1e-12` of `|w| + max|a'| / |d|`, a
     /// thousandth of the caller's pad) at 65 points of each span, and is tight: the bounds'
     /// width against the sampled range's, median within 1%, 90% within 1.3 times, 99% within
-    /// 3 times (without the centred quotient the 99th percentile is about 13 times). Axes
-    /// nearly straight to strongly bent, at 0 and 1e4 from the origin; rays from 1e-3 off
+    /// 3 times (without the centred quotient the 99th percentile is 28 times). Axes nearly
+    /// straight to strongly bent, at 0 and 1e4 from the origin; rays from 1e-3 off
     /// perpendicular to along the axis (log-uniform), `|d|` from 1e-2 to 1e2; ranges 1e-4 to
-    /// 0.3 wide, cut in thirds, and a span of 1e-12 and one past the end by the search margin.
-    /// Bounded wherever the ray is oblique (`|a'.d| >= 1e-3 |a'| |d|`) across the span.
+    /// 0.3 wide, cut in thirds, and small spans: 1e-12 wide, and past either end by the search
+    /// margin, among them spans ending at 0 and at 1e-18 (the review's case: bounds of `w(0)`
+    /// alone, 144 pads from `w(-1e-11)`, before the restriction split at the start first).
+    /// Bounded wherever the ray is oblique (`|a'.d| >= 1e-3 |a'| |d|`) across the span. Also
+    /// the review's fiber and ray whole.
     #[test]
     fn plane_w_bounds_hold_w_and_stay_tight() {
         let mut rng = crate::test_rng::Lcg(7);
@@ -1199,18 +1202,27 @@ mod tests {
             let (a, b) = ((u - half).max(-U_MARGIN), (u + half).min(1.0 + U_MARGIN));
             let third = (b - a) / 3.0;
             let thirds = [(a, a + third), (a + third, b - third), (b - third, b)];
-            let small = [(u, u + 1e-12), (1.0 - 1e-6, 1.0 + U_MARGIN)];
+            // Small spans: one of 1e-12, past either end by the search margin (one ending at 0
+            // and one just above it, which a restriction splitting at the end first lost).
+            let small = [
+                [(u, u + 1e-12), (1.0 - 1e-6, 1.0 + U_MARGIN)],
+                [(-U_MARGIN, 0.0), (-U_MARGIN, 1e-18)],
+            ];
             let local = axis.translated(cyl.origin);
             let w = |x: f64| {
                 let d1 = local.d1(x);
                 d1.dot(local.point(x) - o) / d1.dot(d)
             };
             let speed = cyl.q_scale(d) / d.length_squared();
-            let (shift, bounds) = cyl.plane_w_bounds(o, d, 0.5 * (a + b), &thirds);
-            let (shift_small, small_bounds) = cyl.plane_w_bounds(o, d, u, &small);
-            let bounds = bounds.iter().map(|&e| (shift, e));
-            let bounds = bounds.chain(small_bounds.iter().map(|&e| (shift_small, e)));
-            for (k, (&(x, y), (shift, e))) in thirds.iter().chain(&small).zip(bounds).enumerate() {
+            let placed = |m: f64, spans: &[(f64, f64)]| {
+                let (shift, bounds) = cyl.plane_w_bounds(o, d, m, spans);
+                bounds.into_iter().map(move |e| (shift, e))
+            };
+            let bounds = placed(0.5 * (a + b), &thirds)
+                .chain(placed(u, &small[0]))
+                .chain(placed(u, &small[1]));
+            let spans = thirds.iter().chain(small.as_flattened());
+            for (k, (&(x, y), (shift, e))) in spans.zip(bounds).enumerate() {
                 let ws: Vec<f64> = (0..=64).map(|j| w(x + (y - x) * j as f64 / 64.0)).collect();
                 let (lo, hi) = ws
                     .iter()
@@ -1233,6 +1245,42 @@ mod tests {
                     ratios.push((e.hi - e.lo) / (hi - lo));
                 }
             }
+        }
+        // The review's case: a fiber at the origin, the span from the search margin to 0.
+        let p = [
+            DVec3::ZERO,
+            DVec3::new(
+                -0.06173505343031138,
+                -0.13474031467922032,
+                0.0765083049191162,
+            ),
+            DVec3::new(
+                0.02861118910368532,
+                -0.024816113524138927,
+                0.05550459097139537,
+            ),
+            DVec3::new(
+                -0.030748152756132185,
+                -0.16427214513532817,
+                0.13006673497147858,
+            ),
+        ];
+        let cyl = FiberSpec::round(p, 1e-3).build().unwrap();
+        let o = DVec3::new(
+            -0.7471954805666884,
+            -0.08862794217456893,
+            -0.7922398660045789,
+        ) - cyl.origin;
+        let d = DVec3::new(0.831056040380982, 0.11838694515763494, 0.8819817091954371);
+        let (shift, e) = cyl.plane_w_bounds(o, d, 0.09578860777313095, &[(-U_MARGIN, 0.0)]);
+        for x in [-U_MARGIN, -0.5 * U_MARGIN, 0.0] {
+            let w = cyl.plane_w_r(o, d, x);
+            let tol = 1e-12 * w.abs();
+            assert!(
+                shift + e[0].lo <= w + tol && w - tol <= shift + e[0].hi,
+                "the review's span: w({x}) = {w} outside {shift} + {:?}",
+                e[0]
+            );
         }
         ratios.sort_by(f64::total_cmp);
         let at = |q: f64| ratios[((ratios.len() - 1) as f64 * q) as usize];

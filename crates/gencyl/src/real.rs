@@ -709,23 +709,6 @@ impl Taylor {
         rounded(self.c - w, self.c + w, self.c + w)
     }
 
-    /// An interval holding the model's values for `t` in `t` (taken within `[-h, h]`):
-    /// `c + s t + [-rho, rho]` in interval arithmetic, and no wider than [`Self::enclosure`].
-    /// One model over a range so bounds each of its parts.
-    pub fn enclosure_over(self, t: Interval) -> Interval {
-        let t = Interval::exact(t.lo.max(-self.h), t.hi.min(self.h));
-        let part = Interval::cst(self.c)
-            + Interval::cst(self.s) * t
-            + Interval::exact(-self.rho, self.rho);
-        let whole = self.enclosure();
-        let (lo, hi) = (part.lo.max(whole.lo), part.hi.min(whole.hi));
-        if lo <= hi {
-            Interval::exact(lo, hi)
-        } else {
-            whole
-        }
-    }
-
     /// `f(self)` for `f` with value `f0` within `err0` of `f(c)`, slope `f1` within `err1` of
     /// `f'(c)` at `c`, and `|f''| <= f2` between `c` and the model's values: Taylor's theorem,
     /// `f(c + d) = f(c) + f'(c) d + f''(xi) d^2 / 2` with `d = s t + r`, so the remainder is

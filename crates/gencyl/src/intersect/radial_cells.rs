@@ -46,8 +46,12 @@ pub(crate) const MAX_RADIAL_CELLS: usize = 12;
 /// ray (at most `1e3` times its ulp over `|d|`, at the least obliqueness the Radial method
 /// isolates, `|a'.d| >= 1e-3 max|a'| |d|`), and a root's refinement in `w`
 /// ([`GeneralizedCylinder::refined_w`]: `|w'|` times a few ulps of `u`, about
-/// `1e-12 max|a'| / |d|`). An independent review found every root at least 100 pads inside
-/// its cell's bounds (20,000 fibers, radii to 30 times the length).
+/// `1e-12 max|a'| / |d|`). An independent review of the earlier Taylor bounds found every
+/// root at least 100 pads inside its cell's bounds (20,000 fibers, radii to 30 times the
+/// length); one of these bounds found no `w` outside them by more than 8 ulps, unpadded, in
+/// 200,000 spans against double-double values (straight to nearly cusped axes 1e-6 to 10
+/// long at up to 1e6 from the origin, rays to 1e-15 off perpendicular), once a span reaching
+/// below `u = 0` was restricted from its start ([`crate::bernstein::Bernstein::restrict`]).
 #[derive(Clone, Copy, Debug)]
 struct Deferred {
     work: Work,
