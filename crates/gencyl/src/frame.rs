@@ -1192,10 +1192,6 @@ mod tests {
         }
     }
 
-    /// `n'(u)`, `b'(u)` (and `t'`) of the projection frame, from dual numbers, equal central
-    /// differences of the frame (step 1e-6: truncation ~1e-12 times the third derivative,
-    /// rounding ~1e-16 / 1e-6; 1e-7 relative leaves a wide margin), also where the axis is
-    /// nearly inflected and its speed is far from 1; and they are not the Frenet-Serret ones.
     /// [`FrameAt::frame_and_rates`] is [`FrameAt::new`]'s frame and derivatives to the bit,
     /// under every framing (a projected frame's by its own evaluation), at the ends, near an
     /// inflection and across the segment.
@@ -1224,6 +1220,10 @@ mod tests {
         }
     }
 
+    /// `n'(u)`, `b'(u)` (and `t'`) of the projection frame, from dual numbers, equal central
+    /// differences of the frame (step 1e-6: truncation ~1e-12 times the third derivative,
+    /// rounding ~1e-16 / 1e-6; 1e-7 relative leaves a wide margin), also where the axis is
+    /// nearly inflected and its speed is far from 1; and they are not the Frenet-Serret ones.
     #[test]
     fn projected_frame_derivatives_match_finite_differences() {
         for (name, c, r) in [
