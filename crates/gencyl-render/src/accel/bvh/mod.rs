@@ -575,6 +575,47 @@ mod tests {
         assert_eq!(down(-1e300), f32::NEG_INFINITY, "beyond f32");
     }
 
+    /// The build's branch-free outward roundings are the nearest `f32` stepped by
+    /// `f32::next_down` / `next_up` where it lies on the wrong side, to the bit: at zeros,
+    /// `f64` values below `f32`'s subnormals, around `f32::MIN_POSITIVE` and `f32::MAX`,
+    /// exact `f32`s and their `f64` neighbours, beyond `f32`'s range, infinities and NaN.
+    #[test]
+    fn build_roundings_are_the_nearest_stepped_outward() {
+        let want_down = |x: f64| {
+            let f = x as f32;
+            if f as f64 > x { f.next_down() } else { f }
+        };
+        let want_up = |x: f64| {
+            let f = x as f32;
+            if (f as f64) < x { f.next_up() } else { f }
+        };
+        let mut rng = Rng::from_seed(72);
+        let mut xs = vec![
+            0.0,
+            1e-320,
+            1e-46,
+            f32::MIN_POSITIVE as f64,
+            f32::MAX as f64,
+            f32::MAX as f64 * (1.0 + 1e-9),
+            1e39,
+            f64::MAX,
+            f64::INFINITY,
+        ];
+        for e in -50..=40 {
+            let m = rng.range(1.0, 10.0) * 10f64.powi(e);
+            let f = m as f32 as f64;
+            xs.extend([m, f, f.next_up(), f.next_down()]);
+        }
+        for _ in 0..20_000 {
+            xs.push(rng.uniform() * 10f64.powf(rng.range(-330.0, 40.0)));
+        }
+        for x in xs.iter().flat_map(|&x| [x, -x]) {
+            assert_eq!(down(x).to_bits(), want_down(x).to_bits(), "down({x:e})");
+            assert_eq!(up(x).to_bits(), want_up(x).to_bits(), "up({x:e})");
+        }
+        assert!(down(f64::NAN).is_nan() && up(f64::NAN).is_nan(), "NaN");
+    }
+
     /// The ray setup's branch-free roundings hold the value on every scale the `f32` test
     /// takes: zero, `f64` values below `f32`'s subnormals, around `f32::MIN_POSITIVE`, values
     /// that are exact `f32`s and their `f64` neighbours, up to `F32_SAFE`.
