@@ -716,6 +716,48 @@ fn bench_selects_rows() {
     assert!(err.contains("needs --large"), "{err}");
 }
 
+/// `bench --builds N` reports the same scene (segments, bytes, hit fraction) as one build, with
+/// finite times; zero builds are refused.
+#[test]
+fn bench_takes_the_least_of_several_builds() {
+    let row = |builds: &str| -> Vec<String> {
+        let out = ok(
+            &[
+                "bench",
+                "--rays",
+                "200",
+                "--scene",
+                "default",
+                "--kind",
+                "camera",
+                "--threads",
+                "1",
+                "--builds",
+                builds,
+            ],
+            None,
+        );
+        let rows: Vec<&str> = out.lines().skip(1).collect();
+        assert_eq!(rows.len(), 1, "one row: {out}");
+        rows[0].split(',').map(String::from).collect()
+    };
+    let (one, three) = (row("1"), row("3"));
+    for r in [&one, &three] {
+        for col in [2, 3] {
+            let secs: f64 = r[col].parse().unwrap();
+            assert!(secs >= 0.0 && secs.is_finite(), "{r:?}");
+        }
+        let peak: f64 = r[5].parse().unwrap();
+        assert!(peak > 1.0 && peak < 4096.0, "peak MiB: {r:?}");
+    }
+    // Segments, bytes a segment, ray count and hit fraction.
+    for col in [0, 1, 4, 8, 10] {
+        assert_eq!(one[col], three[col], "column {col}: {one:?} {three:?}");
+    }
+    let err = fails(&["bench", "--builds", "0"], None);
+    assert!(err.contains("--builds"), "{err}");
+}
+
 /// `bench --render` renders a scene as its file says and reports its timings in one row; a
 /// scene without a camera is refused before any output.
 #[test]
