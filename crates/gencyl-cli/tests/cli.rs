@@ -689,27 +689,36 @@ fn bench_reports_named_scenes() {
     }
 }
 
+/// The one row of `bench` on the built-in scene's `kind` rays (200 of them) on 1 thread, with
+/// `extra` arguments, as its columns.
+fn bench_default_row(kind: &str, extra: &[&str]) -> Vec<String> {
+    let mut args = vec![
+        "bench",
+        "--rays",
+        "200",
+        "--scene",
+        "default",
+        "--kind",
+        kind,
+        "--threads",
+        "1",
+    ];
+    args.extend(extra);
+    let out = ok(&args, None);
+    let rows: Vec<&str> = out.lines().skip(1).collect();
+    assert_eq!(rows.len(), 1, "one row: {out}");
+    rows[0].split(',').map(String::from).collect()
+}
+
 /// `bench --scene --kind --threads` keeps only the rows asked for; an unknown scene is refused.
 #[test]
 fn bench_selects_rows() {
-    let out = ok(
-        &[
-            "bench",
-            "--rays",
-            "200",
-            "--scene",
-            "default",
-            "--kind",
-            "incoherent",
-            "--threads",
-            "1",
-        ],
-        None,
+    let r = bench_default_row("incoherent", &[]);
+    assert_eq!(
+        (r[0].as_str(), r[6].as_str(), r[7].as_str()),
+        ("default", "incoherent", "1"),
+        "{r:?}"
     );
-    let rows: Vec<&str> = out.lines().skip(1).collect();
-    assert_eq!(rows.len(), 1, "one row: {out}");
-    let r: Vec<&str> = rows[0].split(',').collect();
-    assert_eq!((r[0], r[6], r[7]), ("default", "incoherent", "1"), "{out}");
     let err = fails(&["bench", "--scene", "nope"], None);
     assert!(err.contains("--scene nope"), "{err}");
     let err = fails(&["bench", "--scene", "generated-1.6M"], None);
@@ -720,28 +729,10 @@ fn bench_selects_rows() {
 /// finite times; zero builds are refused.
 #[test]
 fn bench_takes_the_least_of_several_builds() {
-    let row = |builds: &str| -> Vec<String> {
-        let out = ok(
-            &[
-                "bench",
-                "--rays",
-                "200",
-                "--scene",
-                "default",
-                "--kind",
-                "camera",
-                "--threads",
-                "1",
-                "--builds",
-                builds,
-            ],
-            None,
-        );
-        let rows: Vec<&str> = out.lines().skip(1).collect();
-        assert_eq!(rows.len(), 1, "one row: {out}");
-        rows[0].split(',').map(String::from).collect()
-    };
-    let (one, three) = (row("1"), row("3"));
+    let (one, three) = (
+        bench_default_row("camera", &["--builds", "1"]),
+        bench_default_row("camera", &["--builds", "3"]),
+    );
     for r in [&one, &three] {
         for col in [2, 3] {
             let secs: f64 = r[col].parse().unwrap();
