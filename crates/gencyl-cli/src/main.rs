@@ -398,6 +398,7 @@ struct BenchArgs {
     render_scene: PathBuf,
     /// Load and build each scene this many times and report the least load and build times
     /// (one run's vary by 5-10% on a shared machine; the least of several, within about 1%).
+    /// The ray sets' rows only: `--render` loads and builds once.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     builds: u32,
 }
