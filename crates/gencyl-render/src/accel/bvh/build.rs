@@ -977,14 +977,14 @@ fn build_clustered(
     let centers = measure(prims).center_range();
     let bits = cluster_bits(n);
     let (lo, ext) = (centers.0, centers.1 - centers.0);
+    // Cells per unit length on each axis (none where the centres do not spread), multiplied
+    // rather than divided by in the pass over every primitive.
     let cells = (1u32 << bits) as f64;
-    let cell = |p: &Prim, k: usize| {
-        if ext[k] > 0.0 {
-            (((p.centroid(k) - lo[k]) / ext[k] * cells) as u32).min((1 << bits) - 1)
-        } else {
-            0
-        }
-    };
+    let scale = ext
+        .to_array()
+        .map(|e| if e > 0.0 { cells / e } else { 0.0 });
+    let cell =
+        |p: &Prim, k: usize| (((p.centroid(k) - lo[k]) * scale[k]) as u32).min((1 << bits) - 1);
     prims.par_iter_mut().for_each(|p| {
         p.code = spread(cell(p, 0)) << 2 | spread(cell(p, 1)) << 1 | spread(cell(p, 2));
     });
