@@ -88,6 +88,11 @@ impl Packed {
     /// Its section is a Bezier loop, the one at the index in the high bits
     /// ([`Packed::LOOP_SHIFT`]) of `loops`.
     const LOOP: u32 = 1 << 11;
+    /// While the store is made: a strand's segment whose axis is the spline segment of its
+    /// control points ([`gives_back`]).
+    const GIVES_BACK: u32 = 1 << 12;
+    /// While the store is made: a strand's segment whose radii are its strand's taper's.
+    const TAKES_TAPER: u32 = 1 << 13;
     const LOOP_SHIFT: u32 = 16;
     /// In `radii`: the radii at `u = 1` are the entry after those at `u = 0`.
     const TAPERED: u32 = 1 << 31;
@@ -241,17 +246,24 @@ impl PackedCylinders {
         Self::new_mapped(
             cylinders,
             &StrandControls::default(),
-            |cylinders, record| cylinders.iter().map(record).collect(),
+            |cylinders, record| {
+                cylinders
+                    .iter()
+                    .enumerate()
+                    .map(|(i, c)| record(i, c))
+                    .collect()
+            },
         )
     }
 
     /// [`Self::new`], with the strands among the cylinders named (their segments are stored
     /// by their control points where these give them back exactly; `strands` in order of
     /// `first`, not overlapping: a span out of order, or reaching past the cylinders, is not
-    /// taken), and each cylinder's own record made by
-    /// `map(cylinders, record)`, which must return `cylinders.iter().map(record)` collected,
-    /// in order (a caller can map in parallel; the records then take their first touch of
-    /// fresh memory in parallel too). The rest runs in order.
+    /// taken), and each cylinder's own record made by `map(cylinders, record)`, which must
+    /// return `cylinders.iter().enumerate().map(|(i, c)| record(i, c))` collected, in order
+    /// (a caller can map in parallel: the records, and the checks of the strands' segments
+    /// against their control points, then run in parallel, and the records take their first
+    /// touch of fresh memory in parallel too). The rest runs in order.
     ///
     /// # Panics
     ///
@@ -262,11 +274,52 @@ impl PackedCylinders {
         strands: &StrandControls,
         map: impl FnOnce(
             &[GeneralizedCylinder],
-            &(dyn Fn(&GeneralizedCylinder) -> Record + Sync),
+            &(dyn Fn(usize, &GeneralizedCylinder) -> Record + Sync),
         ) -> Vec<Record>,
     ) -> Self {
         assert!(cylinders.len() <= Self::MAX, "too many cylinders");
-        let records = map(&cylinders, &|c| Record(Self::pack(c)));
+        // The strands that may be taken: in order and within the cylinders.
+        let mut last_end = 0;
+        let spans: Vec<(usize, &[DVec3], Taper)> = strands
+            .iter()
+            .filter(|&(first, controls, _)| {
+                let k = controls.len().saturating_sub(3);
+                let fits = k > 0 && first >= last_end && first + k <= cylinders.len();
+                if fits {
+                    last_end = first + k;
+                }
+                fits
+            })
+            .collect();
+        // Each cylinder's strand in `spans` (`u32::MAX` for none).
+        let mut strand_of = vec![u32::MAX; if spans.is_empty() { 0 } else { cylinders.len() }];
+        for (s, &(first, controls, _)) in spans.iter().enumerate() {
+            strand_of[first..first + controls.len() - 3].fill(s as u32);
+        }
+        // Each record, with a strand's packed segment checked against its control points (it
+        // must give back its axis exactly as its spline segment) and, on a tapered strand,
+        // its radii against its taper's (to the bit).
+        let records = map(&cylinders, &|i, c| {
+            let mut r = Self::pack(c);
+            if let Some(&(first, controls, taper)) =
+                strand_of.get(i).and_then(|&s| spans.get(s as usize))
+                && r.flags & Packed::WHOLE == 0
+            {
+                let (j, k) = (i - first, controls.len() - 3);
+                let w = &controls[j..j + 4];
+                if gives_back(c, [w[0], w[1], w[2], w[3]]) {
+                    r.flags |= Packed::GIVES_BACK;
+                }
+                let (major, minor) = taper.radii(j, k);
+                if bits_of(&major) == bits_of(&c.sweep.major)
+                    && bits_of(&minor) == bits_of(&c.sweep.minor)
+                {
+                    r.flags |= Packed::TAKES_TAPER;
+                }
+            }
+            Record(r)
+        });
+        drop(strand_of);
         assert_eq!(records.len(), cylinders.len(), "one record a cylinder");
         let mut out = PackedCylinders {
             // The records' own memory, written in place below.
@@ -278,34 +331,28 @@ impl PackedCylinders {
         // A strand's segments go by their control points where every one of them that packs
         // gives back its axis exactly as its spline segment (a segment's points are the next
         // ones' too, so all or none; one kept whole keeps its point in `points` all the same).
-        // A strand out of order or past the cylinders is not taken. A tapered one's take their
-        // radii from its taper where every packed one's are the taper's to the bit.
-        let mut last_end = 0;
-        let taken: Vec<(usize, &[DVec3], Option<Taper>)> = strands
-            .iter()
-            .filter_map(|(first, controls, taper)| {
-                let k = controls.len().saturating_sub(3);
-                if !(k > 0 && first >= last_end && first + k <= cylinders.len()) {
-                    return None;
-                }
-                last_end = first + k;
-                let packed = |j: usize| out.records[first + j].flags & Packed::WHOLE == 0;
-                let splines = (0..k).all(|j| {
-                    let w = &controls[j..j + 4];
-                    !packed(j) || gives_back(&cylinders[first + j], [w[0], w[1], w[2], w[3]])
-                });
-                let tapered = taper.radius[0].to_bits() != taper.radius[1].to_bits()
-                    && (0..k).any(packed)
-                    && (0..k).all(|j| {
-                        let (major, minor) = taper.radii(j, k);
-                        let sweep = &cylinders[first + j].sweep;
-                        !packed(j)
-                            || bits_of(&major) == bits_of(&sweep.major)
-                                && bits_of(&minor) == bits_of(&sweep.minor)
-                    });
-                splines.then_some((first, controls, tapered.then_some(taper)))
-            })
-            .collect();
+        // A tapered one's take their radii from its taper where every packed one's are the
+        // taper's to the bit. The checks' flags are cleared as they are read.
+        let mut taken = Vec::new();
+        for (first, controls, taper) in spans {
+            let k = controls.len() - 3;
+            let records = &mut out.records[first..first + k];
+            let packed = |r: &Packed| r.flags & Packed::WHOLE == 0;
+            let splines = records
+                .iter()
+                .all(|r| !packed(r) || r.flags & Packed::GIVES_BACK != 0);
+            let tapered = taper.radius[0].to_bits() != taper.radius[1].to_bits()
+                && records.iter().any(packed)
+                && records
+                    .iter()
+                    .all(|r| !packed(r) || r.flags & Packed::TAKES_TAPER != 0);
+            for r in records.iter_mut() {
+                r.flags &= !(Packed::GIVES_BACK | Packed::TAKES_TAPER);
+            }
+            if splines {
+                taken.push((first, controls, tapered.then_some(taper)));
+            }
+        }
         for &(first, controls, taper) in &taken {
             let k = controls.len() - 3;
             let index = taper.map(|taper| {
@@ -339,7 +386,9 @@ impl PackedCylinders {
         let mut span = spans.next();
         // The current strand's tail in `extra`, once a segment needs it.
         let mut tail = None;
-        for (i, c) in cylinders.into_iter().enumerate() {
+        // By reference: a strand's segment reads little of its cylinder, and only those kept
+        // whole are copied.
+        for (i, c) in cylinders.iter().enumerate() {
             while span.is_some_and(|(first, controls, _)| i >= first + controls.len() - 3) {
                 (span, tail) = (spans.next(), None);
             }
@@ -350,6 +399,7 @@ impl PackedCylinders {
                 _ => out.settle(i, c),
             }
         }
+        drop(cylinders);
         // One past the end: a record's run of four points is always an address in bounds.
         out.points.push(DVec3::ZERO);
         out.extra.shrink_to_fit();
@@ -390,7 +440,7 @@ impl PackedCylinders {
     fn settle_spline(
         &mut self,
         i: usize,
-        c: GeneralizedCylinder,
+        c: &GeneralizedCylinder,
         first: usize,
         controls: &[DVec3],
         tail: &mut Option<u32>,
@@ -399,7 +449,7 @@ impl PackedCylinders {
         self.points.push(controls[j]);
         if self.records[i].flags & Packed::WHOLE != 0 {
             self.records[i].radii = self.whole.len() as u32;
-            self.whole.push(c);
+            self.whole.push(c.clone());
             return;
         }
         let avail = (k - j).min(4);
@@ -416,7 +466,7 @@ impl PackedCylinders {
         // its points are the next records' and not yet kept; so were its radii against its
         // strand's taper where it takes them from there.
         if record.flags & Packed::STRAND_TAPER == 0 {
-            self.share_radii(i, &c);
+            self.share_radii(i, c);
         }
     }
 
@@ -424,10 +474,10 @@ impl PackedCylinders {
     /// segment: a cylinder that did not pack is kept whole; a packed one keeps `p0` in
     /// `points` and the rest in `extra`, and is joined to the record before where that one ends
     /// at its start (the end it kept aside is dropped).
-    fn settle(&mut self, i: usize, c: GeneralizedCylinder) {
+    fn settle(&mut self, i: usize, c: &GeneralizedCylinder) {
         if self.records[i].flags & Packed::WHOLE != 0 {
             self.records[i].radii = self.whole.len() as u32;
-            self.whole.push(c);
+            self.whole.push(c.clone());
             self.points.push(DVec3::ZERO);
             return;
         }
@@ -450,8 +500,8 @@ impl PackedCylinders {
         self.records[i].extra = self.extra.len() as u32;
         self.extra.push(o + l[3]);
         self.points.push(o);
-        self.share_radii(i, &c);
-        debug_assert!(self.unpack(i) == c, "a packed cylinder rebuilds as itself");
+        self.share_radii(i, c);
+        debug_assert!(self.unpack(i) == *c, "a packed cylinder rebuilds as itself");
     }
 
     /// Gives record `i` its radii: those at its start shared with the entry before where they
@@ -802,6 +852,29 @@ mod tests {
         }
     }
 
+    /// [`PackedCylinders::new_mapped`]'s map, in order on one thread.
+    fn in_order(
+        cylinders: &[GeneralizedCylinder],
+        record: &(dyn Fn(usize, &GeneralizedCylinder) -> Record + Sync),
+    ) -> Vec<Record> {
+        (0..cylinders.len())
+            .map(|i| record(i, &cylinders[i]))
+            .collect()
+    }
+
+    /// [`in_order`]'s records made last to first (as a parallel map may make them).
+    fn reversed(
+        cylinders: &[GeneralizedCylinder],
+        record: &(dyn Fn(usize, &GeneralizedCylinder) -> Record + Sync),
+    ) -> Vec<Record> {
+        let mut records: Vec<Record> = (0..cylinders.len())
+            .rev()
+            .map(|i| record(i, &cylinders[i]))
+            .collect();
+        records.reverse();
+        records
+    }
+
     fn controls_of(spans: &[StrandSpan]) -> StrandControls {
         let mut out = StrandControls::default();
         for s in spans {
@@ -887,15 +960,7 @@ mod tests {
         assert!(packed.records.iter().all(|r| r.flags & Packed::SPLINE == 0));
         check_every_cylinder(&packed, &all);
         // The records made in another order (as a parallel map makes them): the same store.
-        let mapped = PackedCylinders::new_mapped(
-            all.clone(),
-            &StrandControls::default(),
-            |cylinders, record| {
-                let mut records: Vec<Record> = cylinders.iter().rev().map(record).collect();
-                records.reverse();
-                records
-            },
-        );
+        let mapped = PackedCylinders::new_mapped(all.clone(), &StrandControls::default(), reversed);
         assert!(mapped.records == packed.records && mapped.points == packed.points);
         assert!(mapped.extra == packed.extra && mapped.radii == packed.radii);
         assert!(mapped.inner == packed.inner && mapped.inner_start == packed.inner_start);
@@ -935,11 +1000,12 @@ mod tests {
         spans[liar].controls[2].x = spans[liar].controls[2].x.next_up();
         spans[3].first += 1;
         spans[3].controls.pop();
-        let splined =
-            PackedCylinders::new_mapped(all.clone(), &controls_of(&spans), |cylinders, record| {
-                cylinders.iter().map(record).collect()
-            });
+        let splined = PackedCylinders::new_mapped(all.clone(), &controls_of(&spans), in_order);
         check_every_cylinder(&splined, &all);
+        // The records and the segments' checks made in another order: the same store.
+        let mapped = PackedCylinders::new_mapped(all.clone(), &controls_of(&spans), reversed);
+        assert!(mapped.records == splined.records && mapped.points == splined.points);
+        assert!(mapped.extra == splined.extra && mapped.tapers == splined.tapers);
         let is_spline = |i: usize| splined.records[i].flags & Packed::SPLINE != 0;
         let is_whole = |i: usize| splined.records[i].flags & Packed::WHOLE != 0;
         let packed_segments = |s: &StrandSpan| (0..8).filter(|j| !is_whole(s.first + j)).count();
@@ -1008,11 +1074,8 @@ mod tests {
         assert_eq!(size_of::<Packed>(), 56);
         let span = StrandSpan::of(0, &s);
         for spans in [vec![], vec![span.clone()]] {
-            let packed = PackedCylinders::new_mapped(
-                cylinders.clone(),
-                &controls_of(&spans),
-                |c, record| c.iter().map(record).collect(),
-            );
+            let packed =
+                PackedCylinders::new_mapped(cylinders.clone(), &controls_of(&spans), in_order);
             assert!(packed.whole().is_empty(), "every segment packs");
             assert_eq!(
                 packed.points.len(),
@@ -1043,10 +1106,7 @@ mod tests {
             "a tapered strand of 4 segments: radii at its 3 joints and 2 ends"
         );
         assert!(unnamed.tapers.is_empty());
-        let packed =
-            PackedCylinders::new_mapped(both.clone(), &controls_of(&spans), |c, record| {
-                c.iter().map(record).collect()
-            });
+        let packed = PackedCylinders::new_mapped(both.clone(), &controls_of(&spans), in_order);
         assert_eq!(packed.extra.len(), 6, "each strand's tail");
         assert_eq!(packed.radii.len(), 1, "the round strand's radius");
         assert_eq!(packed.tapers.len(), 1, "the tapered strand's taper");
@@ -1115,9 +1175,7 @@ mod tests {
             all.extend(cylinders);
             spans.push(span);
         }
-        let packed = PackedCylinders::new_mapped(all.clone(), &controls_of(&spans), |c, r| {
-            c.iter().map(r).collect()
-        });
+        let packed = PackedCylinders::new_mapped(all.clone(), &controls_of(&spans), in_order);
         check_every_cylinder(&packed, &all);
         let tapered = |r: &Packed| r.flags & Packed::STRAND_TAPER != 0;
         assert_eq!(

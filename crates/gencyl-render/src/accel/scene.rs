@@ -83,7 +83,8 @@ impl Scene {
             let records;
             (records, levels) = cylinders
                 .par_iter()
-                .map(|c| (record(c), level_for(c)))
+                .enumerate()
+                .map(|(i, c)| (record(i, c), level_for(c)))
                 .unzip();
             records
         });
