@@ -34,6 +34,7 @@
 //! whole.
 
 use std::borrow::Cow;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[cfg(test)]
 use glam::DVec2;
@@ -299,7 +300,13 @@ impl PackedCylinders {
         // Each record, with a strand's packed segment checked against its control points (it
         // must give back its axis exactly as its spline segment) and, on a tapered strand,
         // its radii against its taper's (to the bit).
+        // Whether any cylinder has a Bezier loop for a section (most scenes have none, and
+        // then need no pass to index them).
+        let any_loop = AtomicBool::new(false);
         let records = map(&cylinders, &|i, c| {
+            if matches!(c.section, Section::Loop(_)) {
+                any_loop.store(true, Ordering::Relaxed);
+            }
             let mut r = Self::pack(c);
             if let Some(&(first, controls, taper)) =
                 strand_of.get(i).and_then(|&s| spans.get(s as usize))
@@ -327,7 +334,9 @@ impl PackedCylinders {
             points: Vec::with_capacity(cylinders.len() + 1),
             ..Default::default()
         };
-        out.index_loops(&cylinders);
+        if any_loop.into_inner() {
+            out.index_loops(&cylinders);
+        }
         // A strand's segments go by their control points where every one of them that packs
         // gives back its axis exactly as its spline segment (a segment's points are the next
         // ones' too, so all or none; one kept whole keeps its point in `points` all the same).
