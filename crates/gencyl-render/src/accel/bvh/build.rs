@@ -72,17 +72,18 @@ pub(super) fn up(x: f64) -> f32 {
     f32::from_bits(bits.wrapping_add(step & below))
 }
 
-/// A primitive during the build: its box (rounded outward), its box's centre, its key, and
-/// a code: its cluster's Morton code ([`cluster_bits`]; 0 until the clusters are formed),
-/// then, while its cluster's tree is built, its bin on the axis last binned ([`bin_axis`]).
-/// 44 bytes; all zeros is a valid placeholder, so a large array of them is fresh memory that
-/// the threads filling it touch first ([`bytemuck::allocation::try_zeroed_vec`]).
+/// A primitive during the build: its box (rounded outward), its key, and a code: its
+/// cluster's Morton code ([`cluster_bits`]; 0 until the clusters are formed), then, while its
+/// cluster's tree is built, its bin on the axis last binned ([`bin_axis`]). 32 bytes (the box's
+/// centre is computed where it is needed, [`Prim::mid`]: the sort, the passes over every
+/// primitive and the array's first touch move a quarter less than with it stored); all zeros is
+/// a valid placeholder, so a large array of them is fresh memory that the threads filling it
+/// touch first ([`bytemuck::allocation::try_zeroed_vec`]).
 #[derive(Clone, Copy, Debug, Zeroable)]
 #[repr(C)]
 struct Prim {
     min: [f32; 3],
     max: [f32; 3],
-    center: [f32; 3],
     index: u32,
     code: u32,
 }
@@ -93,47 +94,67 @@ fn fin(x: f32) -> f64 {
     x.clamp(-f32::MAX, f32::MAX) as f64
 }
 
+/// The midpoint of two bounds' finite stand-ins, `lo / 2 + hi / 2` in `f32` (the halves are
+/// exact but for subnormals, so this is the midpoint rounded once; no overflow).
+#[inline]
+fn midpoint(lo: f32, hi: f32) -> f32 {
+    0.5 * lo.clamp(-f32::MAX, f32::MAX) + 0.5 * hi.clamp(-f32::MAX, f32::MAX)
+}
+
 impl Prim {
     fn new(b: &Aabb, index: u32) -> Self {
-        let (min, max) = (b.min.to_array().map(down), b.max.to_array().map(up));
-        let center = std::array::from_fn(|k| (0.5 * (fin(min[k]) + fin(max[k]))) as f32);
         Prim {
-            min,
-            max,
-            center,
+            min: b.min.to_array().map(down),
+            max: b.max.to_array().map(up),
             index,
             code: 0,
         }
     }
 
-    /// The box's centre on axis `k` (only steers the splits, so `f32` is plenty).
+    /// The box's centre on axis `k` ([`midpoint`]; it only steers the splits, so `f32` is
+    /// plenty).
+    #[inline]
+    fn mid(&self, k: usize) -> f32 {
+        midpoint(self.min[k], self.max[k])
+    }
+
+    /// [`Self::mid`] in `f64`, for the build's arithmetic.
     #[inline]
     fn centroid(&self, k: usize) -> f64 {
-        self.center[k] as f64
+        self.mid(k) as f64
     }
 
     /// A sort key: the centre on axis `k` (in `f32`'s total order, as `f32::total_cmp`), then
     /// the primitive's key.
     #[inline]
     fn order(&self, k: usize) -> u64 {
-        let bits = self.center[k].to_bits();
+        let bits = self.mid(k).to_bits();
         // Negative values count down: flip them all; positive ones go above them.
         let ordered = bits ^ (((bits as i32) >> 31) as u32 | 1 << 31);
         u64::from(ordered) << 32 | u64::from(self.index)
     }
 
     /// The box's corners and centre as lanes `x, y, z` and a fourth that nothing reads
-    /// (the next field, so that each is one load).
+    /// (the next field, so that each corner is one load; the upper corner's, the key's bits,
+    /// is cleared to zero: as a number it would mostly be subnormal, and the centre's sum of
+    /// a subnormal took a microcode assist each, which doubled the build's time).
     #[inline]
     fn lanes(&self) -> [f32x4; 3] {
         let [a, b, c] = self.min;
         let [d, e, f] = self.max;
-        let [g, h, i] = self.center;
-        [
-            f32x4::new([a, b, c, d]),
-            f32x4::new([d, e, f, g]),
-            f32x4::new([g, h, i, 0.0]),
-        ]
+        let lo = f32x4::new([a, b, c, d]);
+        // All ones in lanes x, y, z; zero in the fourth.
+        const XYZ: f32x4 = f32x4::new([
+            f32::from_bits(u32::MAX),
+            f32::from_bits(u32::MAX),
+            f32::from_bits(u32::MAX),
+            0.0,
+        ]);
+        let hi = f32x4::new([d, e, f, f32::from_bits(self.index)]) & XYZ;
+        let (least, most) = (f32x4::splat(-f32::MAX), f32x4::splat(f32::MAX));
+        let half = f32x4::splat(0.5);
+        let finite = |x: f32x4| x.fast_max(least).fast_min(most);
+        [lo, hi, half * finite(lo) + half * finite(hi)]
     }
 }
 
@@ -541,7 +562,7 @@ fn build_small(prims: &mut [Prim], start: usize, depth: usize, arena: &mut Vec<B
 
 /// Sorts at most [`SMALL`] primitives by [`Prim::order`] on axis `k`: the keys are computed
 /// once and sorted with their positions (16 bytes each), and the records moved once, where
-/// sorting the 44-byte records computed two keys a comparison and moved records at each step.
+/// sorting the 32-byte records computed two keys a comparison and moved records at each step.
 fn sort_small(prims: &mut [Prim], k: usize) {
     let n = prims.len();
     debug_assert!(n <= SMALL);
@@ -563,7 +584,7 @@ fn sort_small(prims: &mut [Prim], k: usize) {
 
 /// Moves the items that satisfy `pred` before the others and returns their count: scans from
 /// both ends and swaps only the pairs out of place (Hoare), a quarter of the items on random
-/// input where moving every match forward swapped half of them, each a 44-byte record through
+/// input where moving every match forward swapped half of them, each a record (then 44 bytes) through
 /// the stack. The order within each side is unspecified: the trees do not depend on it where
 /// the keys are distinct, as the scenes' are (a node's bins are sums and unions, and leaves
 /// come from [`build_small`], which sorts by centre and key; with repeated keys and equal
@@ -1120,7 +1141,7 @@ impl Bvh {
     }
 
     /// Builds the BVH over `(box, key)` pairs as they come from a parallel iterator (the
-    /// boxes are not kept: the build holds one 44-byte record a primitive).
+    /// boxes are not kept: the build holds one 32-byte record a primitive).
     pub fn build_from(items: impl ParallelIterator<Item = (Aabb, u32)>) -> Bvh {
         Self::build_prims(
             items.map(|(b, key)| Prim::new(&b, key)).collect(),
@@ -1158,7 +1179,7 @@ impl Bvh {
         // naming the size.
         let mut prims: Vec<Prim> =
             bytemuck::allocation::try_zeroed_vec(total).unwrap_or_else(|()| {
-                // Below 2^32 records of 44 bytes: within `isize::MAX`.
+                // Below 2^32 records of 32 bytes: within `isize::MAX`.
                 let layout = std::alloc::Layout::array::<Prim>(total).expect("a valid layout");
                 std::alloc::handle_alloc_error(layout)
             });
@@ -1369,6 +1390,42 @@ mod tests {
                 let keys = |v: &[Prim]| v.iter().map(|p| p.index).collect::<Vec<_>>();
                 assert_eq!(keys(&got), keys(&want), "n = {n}, axis {k}");
             }
+        }
+    }
+
+    /// A record's centre is its bounds' midpoint rounded once (as the `f64` sum of the two
+    /// `f32`s, halved and rounded, gives it), finite for infinite bounds, the same in the
+    /// lanes as on each axis, and the lanes' corners are the box's, whatever the key's bits.
+    #[test]
+    fn centres_are_the_midpoints_rounded_once() {
+        let mut state = 3;
+        let mut unit = || (next(&mut state) >> 11) as f64 / (1u64 << 53) as f64;
+        for case in 0..20_000 {
+            let scale = 10f64.powf(-30.0 + 60.0 * unit());
+            let lo = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * scale;
+            let b = Aabb {
+                min: lo,
+                max: lo + DVec3::new(unit(), unit(), unit()) * scale * unit(),
+            };
+            let key = [0, 1, 1 << 22, u32::MAX - 1, (unit() * 4e9) as u32][case % 5];
+            let p = Prim::new(&b, key);
+            let [lo, hi, mid] = p.lanes().map(|l| l.to_array());
+            for k in 0..3 {
+                let want = (0.5 * (fin(p.min[k]) + fin(p.max[k]))) as f32;
+                assert_eq!(p.mid(k).to_bits(), want.to_bits(), "case {case}, axis {k}");
+                assert_eq!(mid[k].to_bits(), want.to_bits(), "lanes, case {case}");
+                assert_eq!((lo[k], hi[k]), (p.min[k], p.max[k]));
+            }
+        }
+        let huge = Aabb {
+            min: DVec3::splat(-1e300),
+            max: DVec3::new(1e300, -1e300, 1e39),
+        };
+        let p = Prim::new(&huge, 7);
+        let mid = p.lanes()[2].to_array();
+        for (k, want) in [0.0, -f32::MAX, 0.0].into_iter().enumerate() {
+            assert_eq!(p.mid(k), want, "axis {k}");
+            assert_eq!(mid[k], want, "lanes, axis {k}");
         }
     }
 }
