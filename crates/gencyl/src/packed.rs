@@ -268,8 +268,9 @@ impl PackedCylinders {
     ///
     /// # Panics
     ///
-    /// With more than [`Self::MAX`] cylinders, or if `map` returns other than one record a
-    /// cylinder.
+    /// With more than [`Self::MAX`] cylinders, if `map` returns other than one record a
+    /// cylinder, or if it asks for `record(i, c)` with `c` other than `&cylinders[i]` (a
+    /// segment would be checked against another's control points).
     pub fn new_mapped(
         cylinders: Vec<GeneralizedCylinder>,
         strands: &StrandControls,
@@ -304,7 +305,12 @@ impl PackedCylinders {
         // then need no pass to index them).
         let any_loop = AtomicBool::new(false);
         let records = map(&cylinders, &|i, c| {
-            if matches!(c.section, Section::Loop(_)) {
+            assert!(
+                std::ptr::eq(c, &cylinders[i]),
+                "record({i}, c) with c = &cylinders[{i}]"
+            );
+            // Read first: only the first loop writes (no line shared between threads' writes).
+            if matches!(c.section, Section::Loop(_)) && !any_loop.load(Ordering::Relaxed) {
                 any_loop.store(true, Ordering::Relaxed);
             }
             let mut r = Self::pack(c);
@@ -1015,6 +1021,8 @@ mod tests {
         let mapped = PackedCylinders::new_mapped(all.clone(), &controls_of(&spans), reversed);
         assert!(mapped.records == splined.records && mapped.points == splined.points);
         assert!(mapped.extra == splined.extra && mapped.tapers == splined.tapers);
+        assert!(mapped.radii == splined.radii && mapped.whole == splined.whole);
+        assert!(mapped.inner == splined.inner && mapped.inner_start == splined.inner_start);
         let is_spline = |i: usize| splined.records[i].flags & Packed::SPLINE != 0;
         let is_whole = |i: usize| splined.records[i].flags & Packed::WHOLE != 0;
         let packed_segments = |s: &StrandSpan| (0..8).filter(|j| !is_whole(s.first + j)).count();
@@ -1069,6 +1077,20 @@ mod tests {
     /// unnamed, its segments share their joints: three points a segment and its tip. Radii:
     /// one set for a round strand of constant radius; a tapered one's at its joints and ends,
     /// or its taper alone where it is named.
+    /// A map that hands `record` another cylinder than the index names is refused (its
+    /// segment would be checked against another segment's control points).
+    #[test]
+    #[should_panic(expected = "record(0, c) with c = &cylinders[0]")]
+    fn a_map_must_pair_each_index_with_its_cylinder() {
+        let s = strand(&mut Lcg(5), DVec3::ZERO, 6, [0.01, 0.01], 1.0);
+        let cylinders = s.cylinders().unwrap();
+        let spans = [StrandSpan::of(0, &s)];
+        PackedCylinders::new_mapped(cylinders, &controls_of(&spans), |cylinders, record| {
+            let n = cylinders.len();
+            (0..n).map(|i| record(i, &cylinders[(i + 1) % n])).collect()
+        });
+    }
+
     #[test]
     fn a_strand_stores_one_point_a_segment() {
         let mut rng = Lcg(3);

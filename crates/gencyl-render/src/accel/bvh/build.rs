@@ -1394,8 +1394,9 @@ mod tests {
     }
 
     /// A record's centre is its bounds' midpoint rounded once (as the `f64` sum of the two
-    /// `f32`s, halved and rounded, gives it), finite for infinite bounds, the same in the
-    /// lanes as on each axis, and the lanes' corners are the box's, whatever the key's bits.
+    /// `f32`s, halved and rounded, gives it; bounds from 1e-30 to 1e30, where no half is
+    /// subnormal), finite for infinite bounds, the same in the lanes as on each axis, and the
+    /// lanes' corners are the box's, whatever the key's bits.
     #[test]
     fn centres_are_the_midpoints_rounded_once() {
         let mut state = 3;
