@@ -244,17 +244,7 @@ impl PackedCylinders {
     /// With more than [`Self::MAX`] cylinders.
     pub fn new(cylinders: impl IntoIterator<Item = GeneralizedCylinder>) -> Self {
         let cylinders: Vec<GeneralizedCylinder> = cylinders.into_iter().collect();
-        Self::new_mapped(
-            cylinders,
-            &StrandControls::default(),
-            |cylinders, record| {
-                cylinders
-                    .iter()
-                    .enumerate()
-                    .map(|(i, c)| record(i, c))
-                    .collect()
-            },
-        )
+        Self::new_mapped(cylinders, &StrandControls::default(), in_order)
     }
 
     /// [`Self::new`], with the strands among the cylinders named (their segments are stored
@@ -298,12 +288,12 @@ impl PackedCylinders {
         for (s, &(first, controls, _)) in spans.iter().enumerate() {
             strand_of[first..first + controls.len() - 3].fill(s as u32);
         }
-        // Each record, with a strand's packed segment checked against its control points (it
-        // must give back its axis exactly as its spline segment) and, on a tapered strand,
-        // its radii against its taper's (to the bit).
         // Whether any cylinder has a Bezier loop for a section (most scenes have none, and
         // then need no pass to index them).
         let any_loop = AtomicBool::new(false);
+        // Each record, with a strand's packed segment checked against its control points (it
+        // must give back its axis exactly as its spline segment) and, on a tapered strand,
+        // its radii against its taper's (to the bit).
         let records = map(&cylinders, &|i, c| {
             assert!(
                 std::ptr::eq(c, &cylinders[i]),
@@ -808,6 +798,16 @@ fn spline_points_near([a, b, c, d]: [DVec3; 4]) -> [DVec3; 4] {
     ]
 }
 
+/// [`PackedCylinders::new_mapped`]'s map in order on one thread ([`PackedCylinders::new`]'s).
+fn in_order(
+    cylinders: &[GeneralizedCylinder],
+    record: &(dyn Fn(usize, &GeneralizedCylinder) -> Record + Sync),
+) -> Vec<Record> {
+    (0..cylinders.len())
+        .map(|i| record(i, &cylinders[i]))
+        .collect()
+}
+
 /// Whether the spline segment of the control points `w` is `c`'s axis to the bit: its first
 /// point `c`'s origin, and the others less it `c`'s local points.
 fn gives_back(c: &GeneralizedCylinder, w: [DVec3; 4]) -> bool {
@@ -865,16 +865,6 @@ mod tests {
                 taper: s.taper(),
             }
         }
-    }
-
-    /// [`PackedCylinders::new_mapped`]'s map, in order on one thread.
-    fn in_order(
-        cylinders: &[GeneralizedCylinder],
-        record: &(dyn Fn(usize, &GeneralizedCylinder) -> Record + Sync),
-    ) -> Vec<Record> {
-        (0..cylinders.len())
-            .map(|i| record(i, &cylinders[i]))
-            .collect()
     }
 
     /// [`in_order`]'s records made last to first (as a parallel map may make them).
