@@ -88,17 +88,23 @@ struct Prim {
     code: u32,
 }
 
-/// A finite stand-in for a bound, for the build's arithmetic (centroids, areas).
+/// A finite stand-in for a bound: infinities clamped to `±f32::MAX`.
+#[inline]
+fn finite(x: f32) -> f32 {
+    x.clamp(-f32::MAX, f32::MAX)
+}
+
+/// [`finite`] in `f64`, for the build's arithmetic (centroids, areas).
 #[inline]
 fn fin(x: f32) -> f64 {
-    x.clamp(-f32::MAX, f32::MAX) as f64
+    finite(x) as f64
 }
 
 /// The midpoint of two bounds' finite stand-ins, `lo / 2 + hi / 2` in `f32` (the halves are
 /// exact but for subnormals, so this is the midpoint rounded once; no overflow).
 #[inline]
 fn midpoint(lo: f32, hi: f32) -> f32 {
-    0.5 * lo.clamp(-f32::MAX, f32::MAX) + 0.5 * hi.clamp(-f32::MAX, f32::MAX)
+    0.5 * finite(lo) + 0.5 * finite(hi)
 }
 
 impl Prim {
@@ -153,6 +159,7 @@ impl Prim {
         let hi = f32x4::new([d, e, f, f32::from_bits(self.index)]) & XYZ;
         let (least, most) = (f32x4::splat(-f32::MAX), f32x4::splat(f32::MAX));
         let half = f32x4::splat(0.5);
+        // `finite` in lanes.
         let finite = |x: f32x4| x.fast_max(least).fast_min(most);
         [lo, hi, half * finite(lo) + half * finite(hi)]
     }
