@@ -1,7 +1,7 @@
 //! Building a [`Bvh`]: binned surface area heuristic as pbrt builds it ([`BINS`] bins, the
 //! widest axis or all three for the largest nodes, the exact SAH over sorted primitives in
 //! small nodes, halving splits past a depth bound), each binary tree then collapsed
-//! depth-first into 4-wide [`Node4`]s. The tree depends on the primitives' boxes and keys
+//! depth-first into wide [`Node`]s ([`WIDTH`] children). The tree depends on the primitives' boxes and keys
 //! only, not on the order they come in: equal centres are ordered by key wherever the build
 //! sorts or selects.
 //!
@@ -21,7 +21,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use wide::f32x4;
 
-use super::{BINS, Bvh, Child, MAX_DEPTH, MAX_LEAF, Node4};
+use super::{BINS, Bvh, Child, MAX_DEPTH, MAX_LEAF, Node, WIDTH};
 
 /// Cost of visiting an interior node, relative to testing one primitive. It decides only
 /// whether a node of at most [`MAX_LEAF`] primitives becomes a leaf (cost `n`) or is split
@@ -46,7 +46,7 @@ const PARALLEL_BIN: usize = 1 << 16;
 
 /// `x` rounded down to an `f32`: the nearest `f32`, stepped down one place where it lies
 /// above `x`, as `f32::next_down` does, without a branch (whether the nearest lies above is as
-/// good as random, and the build rounds six bounds a primitive and twenty-four a wide node).
+/// good as random, and the build rounds six bounds a primitive and forty-eight a wide node).
 /// The step is one unit of the bits toward zero for a positive value, away from it for a
 /// negative one; `+0.0` never lies above `x` (a negative `x` rounds to `-0.0`, which steps to
 /// the least negative subnormal), and `+inf` steps to `f32::MAX`.
@@ -370,7 +370,7 @@ fn best_split(bins: &[(usize, Bounds); BINS]) -> Option<(f64, usize)> {
 }
 
 /// A node of a binary build tree, in an arena (a `Vec`, reused from tree to tree), collapsed
-/// into [`Node4`]s afterwards.
+/// into [`Node`]s afterwards.
 #[derive(Clone, Copy, Debug)]
 struct BinNode {
     bounds: Bounds,
@@ -379,7 +379,7 @@ struct BinNode {
 
 #[derive(Clone, Copy, Debug)]
 enum Kind {
-    /// A leaf, and the slot it becomes in its parent [`Node4`].
+    /// A leaf, and the slot it becomes in its parent [`Node`].
     Leaf(Child),
     /// An interior node over the arena's nodes `a` and `b`.
     Interior(u32, u32),
@@ -633,7 +633,7 @@ fn relative_up(x: f32, c: f64) -> f32 {
         d as f32
     }
 }
-/// Collapses the binary subtree `node` of `arena` into 4-wide nodes appended to `out` (depth
+/// Collapses the binary subtree `node` of `arena` into wide nodes appended to `out` (depth
 /// first, a parent before its children) and returns its slot.
 ///
 /// Which binary interior nodes become wide nodes is chosen to minimise the sum of their box
@@ -641,17 +641,26 @@ fn relative_up(x: f32, c: f64) -> f32 {
 /// binary tree's whatever the choice), by dynamic programming over the binary tree as Ylitie,
 /// Karras and Laine (2017) do for 8-wide trees: with `S(n, k)` the least cost of holding the
 /// subtree `n` in at most `k` slots of a wide node,
-/// `S(leaf, k) = 0`, `W(n) = A(n) + min_j S(a, j) + S(b, 4 - j)` (`n` a wide node, one slot),
+/// `S(leaf, k) = 0`, `W(n) = A(n) + min_j S(a, j) + S(b, WIDTH - j)` (`n` a wide node, one slot),
 /// `S(n, 1) = W(n)` and `S(n, k) = min(W(n), min_j S(a, j) + S(b, k - j))` (`n` dissolved
 /// into its children's slots). It fills the nodes' slots wherever the tree allows (a wide node
 /// whose children fit in its parent's free slots costs its area for nothing), where opening
 /// the largest child first (Wald et al. 2008) left a third of the ponytail's slots empty.
 /// Ties go to fewer nodes.
-fn collapse(arena: &[BinNode], node: u32, center: DVec3, out: &mut Vec<Node4>) -> Child {
+///
+/// `plan` is a buffer, reused from call to call.
+fn collapse(
+    arena: &[BinNode],
+    node: u32,
+    center: DVec3,
+    plan: &mut CollapsePlan,
+    out: &mut Vec<Node>,
+) -> Child {
     if let Kind::Leaf(slot) = arena[node as usize].kind {
         return slot;
     }
-    let plan = CollapsePlan::new(arena, node);
+    plan.make(arena, node);
+    out.reserve(plan.wide_nodes(node));
     plan.emit(arena, node, center, out)
 }
 
@@ -675,20 +684,52 @@ impl std::ops::Add for Cost {
 }
 
 /// [`collapse`]'s choices for every binary interior node of a subtree, indexed by arena
-/// position less `first` (children come before their parents in the arena).
+/// position less `first` (children come before their parents in the arena), and the dynamic
+/// program's working arrays.
+#[derive(Default)]
 struct CollapsePlan {
     /// `spread[n][k - 1]`: how the subtree `n` fills at most `k` slots of its parent: `0` as
     /// one wide node, `j` its first child in at most `j` slots and its second in `k - j`.
-    spread: Vec<[u8; 4]>,
-    /// `own[n]`: how the wide node `n` fills its four slots: its first child in `j`, its
-    /// second in `4 - j`.
+    spread: Vec<[u8; WIDTH]>,
+    /// `own[n]`: how the wide node `n` fills its slots: its first child in `j`, its
+    /// second in `WIDTH - j`.
     own: Vec<u8>,
     /// The subtree's lowest arena position.
     first: usize,
+    /// `cost[n][k - 1] = S(n, k)`; zero for leaves.
+    cost: Vec<[Cost; WIDTH]>,
+    /// Leaves under each node, counted up to `WIDTH + 1` ("more than fit in one node").
+    leaves: Vec<u8>,
+}
+
+/// For a binary node whose children `a` and `b` hold `la` and `lb` leaves (counted up to
+/// `WIDTH + 1`) and cost `S(a, j) = ca[j - 1]`, `S(b, j) = cb[j - 1]`: the least
+/// `S(a, j) + S(b, k - j)` over `j` and the first `j` that gives it.
+///
+/// Only `j <= la` is tried: a subtree of `L <= WIDTH` leaves costs nothing in `L` or more
+/// slots (all its leaves fit), and `S` never grows with more slots, so a `j > la` costs
+/// `S(b, k - j) >= S(b, k - la)`, no less than `j = la` before it. Where `k >= la + lb` the
+/// answer is `j = la` at no cost.
+#[inline]
+fn best_slot_split(
+    ca: &[Cost; WIDTH],
+    cb: &[Cost; WIDTH],
+    la: usize,
+    lb: usize,
+    k: usize,
+) -> (Cost, u8) {
+    if k >= la + lb {
+        return (Cost(0.0, 0), la as u8);
+    }
+    (2..k.min(la + 1)).fold((ca[0] + cb[k - 2], 1), |m, j| {
+        let c = ca[j - 1] + cb[k - j - 1];
+        if c.less(m.0) { (c, j as u8) } else { m }
+    })
 }
 
 impl CollapsePlan {
-    fn new(arena: &[BinNode], root: u32) -> Self {
+    /// Plans the collapse of the subtree `root`.
+    fn make(&mut self, arena: &[BinNode], root: u32) {
         // The subtree's nodes lie between its leftmost leaf (pushed first) and its root
         // (pushed last).
         let mut first = root;
@@ -697,39 +738,55 @@ impl CollapsePlan {
         }
         let first = first as usize;
         let len = root as usize + 1 - first;
-        // cost[n][k - 1] = S(n, k); zero for leaves.
-        let mut cost = vec![[Cost(0.0, 0); 4]; len];
-        let mut spread = vec![[0u8; 4]; len];
-        let mut own = vec![0u8; len];
+        self.first = first;
+        let CollapsePlan {
+            spread,
+            own,
+            cost,
+            leaves,
+            ..
+        } = self;
+        own.clear();
+        own.resize(len, 0);
+        leaves.clear();
+        leaves.resize(len, 1);
+        spread.clear();
+        spread.resize(len, [0; WIDTH]);
+        cost.clear();
+        cost.resize(len, [Cost(0.0, 0); WIDTH]);
         for (me, node) in arena[first..=root as usize].iter().enumerate() {
             let Kind::Interior(a, b) = node.kind else {
                 continue;
             };
-            let (ca, cb) = (cost[a as usize - first], cost[b as usize - first]);
-            // The children in at most `j` and `k - j` slots, for each `k`: the best `j` (the
-            // first of equal ones).
-            let first_least = |options: &[(Cost, u8)]| {
-                options[1..]
-                    .iter()
-                    .fold(options[0], |m, &o| if o.0.less(m.0) { o } else { m })
-            };
-            let two = (ca[0] + cb[0], 1);
-            let three = first_least(&[(ca[0] + cb[1], 1), (ca[1] + cb[0], 2)]);
-            let four = first_least(&[(ca[0] + cb[2], 1), (ca[1] + cb[1], 2), (ca[2] + cb[0], 3)]);
-            own[me] = four.1;
-            let wide = Cost(node.bounds.half_area(), 1) + four.0;
-            cost[me][0] = wide;
-            for (k, (c, j)) in [two, three, four].into_iter().enumerate() {
-                (cost[me][k + 1], spread[me][k + 1]) =
-                    if wide.less(c) { (wide, 0) } else { (c, j) };
+            let (a, b) = (a as usize - first, b as usize - first);
+            let (la, lb) = (usize::from(leaves[a]), usize::from(leaves[b]));
+            let (ca, cb) = (&cost[a], &cost[b]);
+            let (split, j) = best_slot_split(ca, cb, la, lb, WIDTH);
+            own[me] = j;
+            let wide = Cost(node.bounds.half_area(), 1) + split;
+            let mut costs = [Cost(0.0, 0); WIDTH];
+            let mut spreads = [0u8; WIDTH];
+            costs[0] = wide;
+            // From `k = la + lb` on (all the leaves fit) the cost is nothing, with `j = la`.
+            let fits = (la + lb).clamp(2, WIDTH + 1);
+            for k in 2..fits {
+                let (c, j) = best_slot_split(ca, cb, la, lb, k);
+                (costs[k - 1], spreads[k - 1]) = if wide.less(c) { (wide, 0) } else { (c, j) };
             }
+            spreads[fits - 1..].fill(la as u8);
+            (cost[me], spread[me]) = (costs, spreads);
+            leaves[me] = (la + lb).min(WIDTH + 1) as u8;
         }
-        CollapsePlan { spread, own, first }
+    }
+
+    /// The number of wide nodes the plan makes of the subtree `root` (an interior node).
+    fn wide_nodes(&self, root: u32) -> usize {
+        self.cost[root as usize - self.first][0].1 as usize
     }
 
     /// The slots the subtree `n` takes in at most `k` slots of its parent, appended to `out`:
     /// leaves, and the interior nodes that become wide nodes.
-    fn slots(&self, arena: &[BinNode], n: u32, k: usize, out: &mut ArrayVec<u32, 4>) {
+    fn slots(&self, arena: &[BinNode], n: u32, k: usize, out: &mut ArrayVec<u32, WIDTH>) {
         let Kind::Interior(a, b) = arena[n as usize].kind else {
             out.push(n);
             return;
@@ -744,19 +801,19 @@ impl CollapsePlan {
     }
 
     /// Writes the wide node of the binary interior node `n` and those below it, depth first.
-    fn emit(&self, arena: &[BinNode], n: u32, center: DVec3, out: &mut Vec<Node4>) -> Child {
+    fn emit(&self, arena: &[BinNode], n: u32, center: DVec3, out: &mut Vec<Node>) -> Child {
         let Kind::Interior(a, b) = arena[n as usize].kind else {
             unreachable!("a wide node is an interior node");
         };
         let j = self.own[n as usize - self.first] as usize;
-        let mut kids: ArrayVec<u32, 4> = ArrayVec::new();
+        let mut kids: ArrayVec<u32, WIDTH> = ArrayVec::new();
         self.slots(arena, a, j, &mut kids);
-        self.slots(arena, b, 4 - j, &mut kids);
+        self.slots(arena, b, WIDTH - j, &mut kids);
         let me = out.len();
-        out.push(Node4 {
-            min: [[f32::INFINITY; 4]; 3],
-            max: [[f32::INFINITY; 4]; 3],
-            child: [Child::EMPTY; 4],
+        out.push(Node {
+            min: [[f32::INFINITY; WIDTH]; 3],
+            max: [[f32::INFINITY; WIDTH]; 3],
+            child: [Child::EMPTY; WIDTH],
         });
         for (i, &kid) in kids.iter().enumerate() {
             let b = arena[kid as usize].bounds;
@@ -779,7 +836,7 @@ impl CollapsePlan {
 
 /// For a test of [`collapse`]: the binary tree of the direct build over `boxes` collapsed by
 /// the dynamic program and by the rule it replaced (open the interior child of the largest
-/// area until there are four, Wald et al. 2008), each as (wide nodes, their total area).
+/// area until there are [`WIDTH`], Wald et al. 2008), each as (wide nodes, their total area).
 #[cfg(test)]
 pub(super) fn collapse_both_ways(boxes: &[Aabb]) -> [(usize, f64); 2] {
     fn greedy(arena: &[BinNode], node: u32, nodes: &mut Vec<u32>) {
@@ -787,8 +844,8 @@ pub(super) fn collapse_both_ways(boxes: &[Aabb]) -> [(usize, f64); 2] {
             return;
         };
         nodes.push(node);
-        let mut kids: ArrayVec<u32, 4> = ArrayVec::from_iter([a, b]);
-        while kids.len() < 4 {
+        let mut kids: ArrayVec<u32, WIDTH> = ArrayVec::from_iter([a, b]);
+        while kids.len() < WIDTH {
             let widest = kids
                 .iter()
                 .enumerate()
@@ -816,12 +873,18 @@ pub(super) fn collapse_both_ways(boxes: &[Aabb]) -> [(usize, f64); 2] {
     let all = measure(&prims);
     let built = build(&mut prims, 0, 1, all, &mut arena);
     let mut out = Vec::new();
-    collapse(&arena, built.node, DVec3::ZERO, &mut out);
-    let area = |n: &Node4| {
-        let b = (0..4)
+    collapse(
+        &arena,
+        built.node,
+        DVec3::ZERO,
+        &mut CollapsePlan::default(),
+        &mut out,
+    );
+    let area = |n: &Node| {
+        let b = (0..WIDTH)
             .filter(|&i| n.child[i].count != u32::MAX)
             .fold(Bounds::EMPTY, |b, i| {
-                let lane = |c: &[[f32; 4]; 3]| f32x4::new([c[0][i], c[1][i], c[2][i], 0.0]);
+                let lane = |c: &[[f32; WIDTH]; 3]| f32x4::new([c[0][i], c[1][i], c[2][i], 0.0]);
                 b.union(&Bounds::of(lane(&n.min), lane(&n.max)))
             });
         b.half_area()
@@ -961,16 +1024,16 @@ fn build_top(
     interior(arena, bounds, a, b)
 }
 
-/// What one thread reuses from tree to tree: the binary arena and the wide nodes' buffer.
+/// What one thread reuses from tree to tree: the binary arena and the collapse's plan.
 #[derive(Default)]
 struct Scratch {
     arena: Vec<BinNode>,
-    nodes: Vec<Node4>,
+    plan: CollapsePlan,
 }
 
-/// 4-wide nodes over `prims`, numbered from 0 (the root, if interior), the root's slot, and
+/// Wide nodes over `prims`, numbered from 0 (the root, if interior), the root's slot, and
 /// the binary depth of the whole tree below the root's depth `depth`.
-type Subtree = (Vec<Node4>, Child, usize);
+type Subtree = (Vec<Node>, Child, usize);
 
 /// The subtree over `prims` (at `start..` in the final order, its root at depth `depth`),
 /// built directly.
@@ -982,10 +1045,17 @@ fn build_direct(
     scratch: &mut Scratch,
 ) -> Subtree {
     scratch.arena.clear();
-    scratch.nodes.clear();
     let built = build(prims, start, depth, measure(prims), &mut scratch.arena);
-    let root = collapse(&scratch.arena, built.node, center, &mut scratch.nodes);
-    (scratch.nodes.clone(), root, depth - 1 + built.depth)
+    // Sized by the plan: one allocation, no copy.
+    let mut nodes = Vec::new();
+    let root = collapse(
+        &scratch.arena,
+        built.node,
+        center,
+        &mut scratch.plan,
+        &mut nodes,
+    );
+    (nodes, root, depth - 1 + built.depth)
 }
 
 /// The subtree over `prims` (at `start..` in the final order, its root at depth `depth`),
@@ -1059,7 +1129,13 @@ fn build_clustered(
     // and only the final array is fresh memory. It never needs more than `n - 1` nodes (one
     // per binary interior node at most); what is reserved and not written is never touched.
     let mut nodes = Vec::with_capacity(n);
-    let root = collapse(&top_arena, top.node, center, &mut nodes);
+    let root = collapse(
+        &top_arena,
+        top.node,
+        center,
+        &mut CollapsePlan::default(),
+        &mut nodes,
+    );
     let tops = nodes.len();
     let mut roots = Vec::with_capacity(depths.len());
     let mut deepest = depth;
@@ -1289,7 +1365,7 @@ impl Bvh {
 ///
 /// In parallel over chunks of nodes: a first pass counts each chunk's run lengths, so that
 /// each chunk writes its own part of the array.
-fn inline_singletons(nodes: &mut [Node4], root: &mut Child, prims: &[Prim]) -> Vec<u32> {
+fn inline_singletons(nodes: &mut [Node], root: &mut Child, prims: &[Prim]) -> Vec<u32> {
     /// Nodes a task rewrites.
     const CHUNK: usize = 1 << 12;
     /// The keys a slot puts in the array: those of a leaf of two or more.
@@ -1350,6 +1426,87 @@ mod tests {
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
+    }
+
+    /// The collapse's dynamic program, which tries only the splits that can win, chooses what
+    /// the plain recurrence (every `j` for every `k`, the first of equal costs) chooses, on
+    /// binary trees of 2 to 3,000 leaves: random boxes, and boxes from a few shapes repeated
+    /// (equal areas, so ties) in leaves of one to [`MAX_LEAF`].
+    #[test]
+    fn collapse_plan_is_the_full_recurrence() {
+        let mut state = 11;
+        let mut unit = || (next(&mut state) >> 11) as f64 / (1u64 << 53) as f64;
+        for n in [2usize, 3, 5, 9, 17, 40, 300, 3000] {
+            for shapes in [0usize, 2, 5] {
+                let kinds: Vec<(DVec3, DVec3)> = (0..shapes.max(1))
+                    .map(|_| {
+                        let p = DVec3::new(unit(), unit(), unit()) * 4.0;
+                        (p, p + DVec3::new(unit(), unit(), unit()))
+                    })
+                    .collect();
+                let boxes: Vec<Aabb> = (0..n)
+                    .map(|_| {
+                        let (min, max) = if shapes == 0 {
+                            let p = DVec3::new(unit(), unit(), unit()) * 10.0;
+                            (p, p + DVec3::new(unit(), unit(), unit()) * 0.5)
+                        } else {
+                            kinds[(unit() * shapes as f64) as usize % shapes]
+                        };
+                        Aabb { min, max }
+                    })
+                    .collect();
+                let mut prims: Vec<Prim> = boxes
+                    .iter()
+                    .zip(0..)
+                    .map(|(b, i)| Prim::new(b, i))
+                    .collect();
+                let mut arena = Vec::new();
+                let all = measure(&prims);
+                let root = build(&mut prims, 0, 1, all, &mut arena).node;
+                if !matches!(arena[root as usize].kind, Kind::Interior(..)) {
+                    continue;
+                }
+                let mut plan = CollapsePlan::default();
+                plan.make(&arena, root);
+                // The recurrence as the doc of `collapse` states it.
+                let len = root as usize + 1 - plan.first;
+                let mut cost = vec![[Cost(0.0, 0); WIDTH]; len];
+                let mut spread = vec![[0u8; WIDTH]; len];
+                let mut own = vec![0u8; len];
+                for (me, node) in arena[plan.first..=root as usize].iter().enumerate() {
+                    let Kind::Interior(a, b) = node.kind else {
+                        continue;
+                    };
+                    let (ca, cb) = (cost[a as usize - plan.first], cost[b as usize - plan.first]);
+                    let best = |k: usize| {
+                        let mut m = (ca[0] + cb[k - 2], 1u8);
+                        for j in 2..k {
+                            let c = ca[j - 1] + cb[k - j - 1];
+                            if c.less(m.0) {
+                                m = (c, j as u8);
+                            }
+                        }
+                        m
+                    };
+                    own[me] = best(WIDTH).1;
+                    let wide = Cost(node.bounds.half_area(), 1) + best(WIDTH).0;
+                    cost[me][0] = wide;
+                    for k in 2..=WIDTH {
+                        let (c, j) = best(k);
+                        (cost[me][k - 1], spread[me][k - 1]) =
+                            if wide.less(c) { (wide, 0) } else { (c, j) };
+                    }
+                }
+                assert_eq!(
+                    plan.own, own,
+                    "{n} leaves, {shapes} shapes: the nodes' own splits"
+                );
+                assert_eq!(
+                    plan.spread, spread,
+                    "{n} leaves, {shapes} shapes: the spreads"
+                );
+            }
+        }
     }
 
     /// The partition keeps every item, puts exactly the matches first, and returns their
