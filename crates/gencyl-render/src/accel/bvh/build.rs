@@ -737,6 +737,7 @@ impl CollapsePlan {
             first = a;
         }
         let first = first as usize;
+        let len = root as usize + 1 - first;
         self.first = first;
         let CollapsePlan {
             spread,
@@ -745,37 +746,36 @@ impl CollapsePlan {
             leaves,
             ..
         } = self;
-        // Each node's entries are pushed in arena order (children before parents), written
-        // once each.
-        spread.clear();
         own.clear();
-        cost.clear();
+        own.resize(len, 0);
         leaves.clear();
-        for node in &arena[first..=root as usize] {
+        leaves.resize(len, 1);
+        spread.clear();
+        spread.resize(len, [0; WIDTH]);
+        cost.clear();
+        cost.resize(len, [Cost(0.0, 0); WIDTH]);
+        for (me, node) in arena[first..=root as usize].iter().enumerate() {
             let Kind::Interior(a, b) = node.kind else {
-                cost.push([Cost(0.0, 0); WIDTH]);
-                spread.push([0; WIDTH]);
-                own.push(0);
-                leaves.push(1);
                 continue;
             };
             let (a, b) = (a as usize - first, b as usize - first);
             let (la, lb) = (usize::from(leaves[a]), usize::from(leaves[b]));
             let (ca, cb) = (&cost[a], &cost[b]);
             let (split, j) = best_slot_split(ca, cb, la, lb, WIDTH);
+            own[me] = j;
             let wide = Cost(node.bounds.half_area(), 1) + split;
             let mut costs = [Cost(0.0, 0); WIDTH];
-            let mut spreads = [la as u8; WIDTH];
-            (costs[0], spreads[0]) = (wide, 0);
+            let mut spreads = [0u8; WIDTH];
+            costs[0] = wide;
             // From `k = la + lb` on (all the leaves fit) the cost is nothing, with `j = la`.
-            for k in 2..(la + lb).min(WIDTH + 1) {
+            let fits = (la + lb).clamp(2, WIDTH + 1);
+            for k in 2..fits {
                 let (c, j) = best_slot_split(ca, cb, la, lb, k);
                 (costs[k - 1], spreads[k - 1]) = if wide.less(c) { (wide, 0) } else { (c, j) };
             }
-            cost.push(costs);
-            spread.push(spreads);
-            own.push(j);
-            leaves.push((la + lb).min(WIDTH + 1) as u8);
+            spreads[fits - 1..].fill(la as u8);
+            (cost[me], spread[me]) = (costs, spreads);
+            leaves[me] = (la + lb).min(WIDTH + 1) as u8;
         }
     }
 
