@@ -838,6 +838,21 @@ impl CollapsePlan {
     }
 }
 
+/// For the tests: the binary tree of the direct build over `boxes` (primitive `i` with the
+/// key `i`): its arena and its root.
+#[cfg(test)]
+fn binary_tree(boxes: &[Aabb]) -> (Vec<BinNode>, u32) {
+    let mut prims: Vec<Prim> = boxes
+        .iter()
+        .zip(0..)
+        .map(|(b, i)| Prim::new(b, i))
+        .collect();
+    let mut arena = Vec::new();
+    let all = measure(&prims);
+    let root = build(&mut prims, 0, 1, all, &mut arena).node;
+    (arena, root)
+}
+
 /// For a test of [`collapse`]: the binary tree of the direct build over `boxes` collapsed by
 /// the dynamic program and by the rule it replaced (open the interior child of the largest
 /// area until there are [`WIDTH`], Wald et al. 2008), each as (wide nodes, their total area).
@@ -868,18 +883,11 @@ pub(super) fn collapse_both_ways(boxes: &[Aabb]) -> [(usize, f64); 2] {
             greedy(arena, kid, nodes);
         }
     }
-    let mut prims: Vec<Prim> = boxes
-        .iter()
-        .zip(0..)
-        .map(|(b, i)| Prim::new(b, i))
-        .collect();
-    let mut arena = Vec::new();
-    let all = measure(&prims);
-    let built = build(&mut prims, 0, 1, all, &mut arena);
+    let (arena, root) = binary_tree(boxes);
     let mut out = Vec::new();
     collapse(
         &arena,
-        built.node,
+        root,
         DVec3::ZERO,
         &mut CollapsePlan::default(),
         &mut out,
@@ -894,7 +902,7 @@ pub(super) fn collapse_both_ways(boxes: &[Aabb]) -> [(usize, f64); 2] {
         b.half_area()
     };
     let mut wide = Vec::new();
-    greedy(&arena, built.node, &mut wide);
+    greedy(&arena, root, &mut wide);
     [
         (out.len(), out.iter().map(area).sum()),
         (
@@ -1460,14 +1468,7 @@ mod tests {
                         Aabb { min, max }
                     })
                     .collect();
-                let mut prims: Vec<Prim> = boxes
-                    .iter()
-                    .zip(0..)
-                    .map(|(b, i)| Prim::new(b, i))
-                    .collect();
-                let mut arena = Vec::new();
-                let all = measure(&prims);
-                let root = build(&mut prims, 0, 1, all, &mut arena).node;
+                let (arena, root) = binary_tree(&boxes);
                 if !matches!(arena[root as usize].kind, Kind::Interior(..)) {
                     continue;
                 }

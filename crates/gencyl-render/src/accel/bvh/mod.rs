@@ -752,6 +752,38 @@ mod tests {
         }
     }
 
+    /// `n` boxes with centres uniform in `[0, 10]^3` and half-sizes uniform in `[0, half]` on
+    /// each axis.
+    fn scattered_boxes(rng: &mut Rng, n: usize, half: f64) -> Vec<Aabb> {
+        (0..n)
+            .map(|_| {
+                let c = rng.in_box(DVec3::ZERO, DVec3::splat(10.0));
+                let h = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * half;
+                Aabb {
+                    min: c - h,
+                    max: c + h,
+                }
+            })
+            .collect()
+    }
+
+    /// A ray from anywhere about the boxes (in `[-5, 15]^3`) toward the centre of one of them.
+    fn ray_toward_a_box(rng: &mut Rng, boxes: &[Aabb]) -> Ray {
+        let o = rng.in_box(DVec3::splat(-5.0), DVec3::splat(15.0));
+        let b = boxes[rng.next_u64() as usize % boxes.len()];
+        Ray::new(o, 0.5 * (b.min + b.max) - o)
+    }
+
+    /// The primitives `traverse` visits on `ray` over `[0, inf)`, in order, nothing cut short.
+    fn visited(bvh: &Bvh, ray: &Ray) -> Vec<u32> {
+        let mut out = vec![];
+        bvh.traverse(ray, 0.0, f64::INFINITY, |p, t| {
+            out.push(p);
+            t
+        });
+        out
+    }
+
     /// `traverse_prefetching` visits what `traverse` visits, in the same order, and before a
     /// leaf's primitives are visited it has named all of that leaf's primitives to `prefetch_leaf`
     /// (every leaf under an inner root is some node's child), naming only primitives the BVH
@@ -760,16 +792,7 @@ mod tests {
     #[test]
     fn prefetching_names_each_leaf_before_its_visit() {
         let mut rng = Rng::from_seed(5);
-        let boxes: Vec<Aabb> = (0..3000)
-            .map(|_| {
-                let c = rng.in_box(DVec3::ZERO, DVec3::splat(10.0));
-                let h = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 0.2;
-                Aabb {
-                    min: c - h,
-                    max: c + h,
-                }
-            })
-            .collect();
+        let boxes = scattered_boxes(&mut rng, 3000, 0.2);
         let bvh = Bvh::build(&boxes);
         assert!(bvh.root.is_some_and(|r| r.count == 0), "an inner root");
         // Each primitive's leaf, by its first primitive.
@@ -785,15 +808,8 @@ mod tests {
         let (mut visits, mut named) = (0, 0);
         let multi = std::cell::Cell::new(0);
         for _ in 0..3000 {
-            // From anywhere about the model toward one of its boxes.
-            let o = rng.in_box(DVec3::splat(-5.0), DVec3::splat(15.0));
-            let b = boxes[rng.next_u64() as usize % boxes.len()];
-            let ray = Ray::new(o, 0.5 * (b.min + b.max) - o);
-            let mut plain = vec![];
-            bvh.traverse(&ray, 0.0, f64::INFINITY, |p, t| {
-                plain.push(p);
-                t
-            });
+            let ray = ray_toward_a_box(&mut rng, &boxes);
+            let plain = visited(&bvh, &ray);
             let hinted = std::cell::RefCell::new(Vec::new());
             let mut seen = vec![];
             bvh.traverse_prefetching(
@@ -1193,30 +1209,15 @@ mod tests {
         }
         let mut rng = Rng::from_seed(17);
         for repeats in [1usize, 4, 40] {
-            let shapes: Vec<Aabb> = (0..4000 / repeats)
-                .map(|_| {
-                    let c = rng.in_box(DVec3::ZERO, DVec3::splat(10.0));
-                    let h = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 0.4;
-                    Aabb {
-                        min: c - h,
-                        max: c + h,
-                    }
-                })
-                .collect();
+            let shapes = scattered_boxes(&mut rng, 4000 / repeats, 0.4);
             let boxes: Vec<Aabb> = (0..shapes.len() * repeats)
                 .map(|i| shapes[i % shapes.len()])
                 .collect();
             let bvh = Bvh::build(&boxes);
             let mut orders = 0;
             for _ in 0..500 {
-                let o = rng.in_box(DVec3::splat(-5.0), DVec3::splat(15.0));
-                let b = boxes[rng.next_u64() as usize % boxes.len()];
-                let ray = Ray::new(o, 0.5 * (b.min + b.max) - o);
-                let mut walked = vec![];
-                bvh.traverse(&ray, 0.0, f64::INFINITY, |p, t| {
-                    walked.push(p);
-                    t
-                });
+                let ray = ray_toward_a_box(&mut rng, &boxes);
+                let walked = visited(&bvh, &ray);
                 let slab = Slabs::new(&ray, bvh.center, 0.0);
                 let fast = Slabs32::<false>::new(&slab, 0.0, &bvh.extent).expect("an f32 ray");
                 let mut want = vec![];
