@@ -1,9 +1,9 @@
 //! Building a [`Bvh`]: binned surface area heuristic as pbrt builds it ([`BINS`] bins, the
 //! widest axis or all three for the largest nodes, the exact SAH over sorted primitives in
 //! small nodes, halving splits past a depth bound), each binary tree then collapsed
-//! depth-first into wide [`Node`]s ([`WIDTH`] children). The tree depends on the primitives' boxes and keys
-//! only, not on the order they come in: equal centres are ordered by key wherever the build
-//! sorts or selects.
+//! depth-first into wide [`Node`]s ([`WIDTH`] children). The tree depends on the primitives'
+//! boxes and keys only, not on the order they come in: equal centres are ordered by key
+//! wherever the build sorts or selects.
 //!
 //! Large inputs are first grouped into clusters, as HLBVH does (Pantaleoni and Luebke 2010;
 //! Garanzha, Pantaleoni and McAllister 2011): each primitive's centroid gets a Morton code on
@@ -641,7 +641,8 @@ fn relative_up(x: f32, c: f64) -> f32 {
 /// binary tree's whatever the choice), by dynamic programming over the binary tree as Ylitie,
 /// Karras and Laine (2017) do for 8-wide trees: with `S(n, k)` the least cost of holding the
 /// subtree `n` in at most `k` slots of a wide node,
-/// `S(leaf, k) = 0`, `W(n) = A(n) + min_j S(a, j) + S(b, WIDTH - j)` (`n` a wide node, one slot),
+/// `S(leaf, k) = 0`, `W(n) = A(n) + min_j S(a, j) + S(b, WIDTH - j)` (`n` a wide node, one
+/// slot),
 /// `S(n, 1) = W(n)` and `S(n, k) = min(W(n), min_j S(a, j) + S(b, k - j))` (`n` dissolved
 /// into its children's slots). It fills the nodes' slots wherever the tree allows (a wide node
 /// whose children fit in its parent's free slots costs its area for nothing), where opening
