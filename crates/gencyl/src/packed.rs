@@ -1063,10 +1063,6 @@ mod tests {
         );
     }
 
-    /// A strand named by its control points stores one point a segment and three at its tip;
-    /// unnamed, its segments share their joints: three points a segment and its tip. Radii:
-    /// one set for a round strand of constant radius; a tapered one's at its joints and ends,
-    /// or its taper alone where it is named.
     /// A map that hands `record` another cylinder than the index names is refused (its
     /// segment would be checked against another segment's control points).
     #[test]
@@ -1081,6 +1077,10 @@ mod tests {
         });
     }
 
+    /// A strand named by its control points stores one point a segment and three at its tip;
+    /// unnamed, its segments share their joints: three points a segment and its tip. Radii:
+    /// one set for a round strand of constant radius; a tapered one's at its joints and ends,
+    /// or its taper alone where it is named.
     #[test]
     fn a_strand_stores_one_point_a_segment() {
         let mut rng = Lcg(3);

@@ -691,10 +691,9 @@ impl std::ops::Add for Cost {
 struct CollapsePlan {
     /// `spread[n][k - 1]`: how the subtree `n` fills at most `k` slots of its parent: `0` as
     /// one wide node, `j` its first child in at most `j` slots and its second in `k - j`.
+    /// `spread[n][WIDTH - 1]` is never `0` (a wide node costs its area more than its children
+    /// in its `WIDTH` slots), and is how the wide node `n` fills its own slots.
     spread: Vec<[u8; WIDTH]>,
-    /// `own[n]`: how the wide node `n` fills its slots: its first child in `j`, its
-    /// second in `WIDTH - j`.
-    own: Vec<u8>,
     /// The subtree's lowest arena position.
     first: usize,
     /// `cost[n][k - 1] = S(n, k)`; zero for leaves.
@@ -746,13 +745,10 @@ impl CollapsePlan {
         self.first = first;
         let CollapsePlan {
             spread,
-            own,
             cost,
             leaves,
             ..
         } = self;
-        own.clear();
-        own.resize(len, 0);
         leaves.clear();
         leaves.resize(len, 1);
         spread.clear();
@@ -767,18 +763,17 @@ impl CollapsePlan {
             let (la, lb) = (usize::from(leaves[a]), usize::from(leaves[b]));
             let (ca, cb) = (&cost[a], &cost[b]);
             let (split, j) = best_slot_split(ca, cb, la, lb, WIDTH);
-            own[me] = j;
             let wide = Cost(node.bounds.half_area(), 1) + split;
+            // From `k = la + lb` on (all the leaves fit) the cost is nothing, with `j = la`;
+            // in `WIDTH` slots it is the split itself (`wide` is that and its area more).
             let mut costs = [Cost(0.0, 0); WIDTH];
-            let mut spreads = [0u8; WIDTH];
-            costs[0] = wide;
-            // From `k = la + lb` on (all the leaves fit) the cost is nothing, with `j = la`.
-            let fits = (la + lb).clamp(2, WIDTH + 1);
-            for k in 2..fits {
+            let mut spreads = [la as u8; WIDTH];
+            (costs[0], spreads[0]) = (wide, 0);
+            (costs[WIDTH - 1], spreads[WIDTH - 1]) = (split, j);
+            for k in 2..(la + lb).min(WIDTH) {
                 let (c, j) = best_slot_split(ca, cb, la, lb, k);
                 (costs[k - 1], spreads[k - 1]) = if wide.less(c) { (wide, 0) } else { (c, j) };
             }
-            spreads[fits - 1..].fill(la as u8);
             (cost[me], spread[me]) = (costs, spreads);
             leaves[me] = (la + lb).min(WIDTH + 1) as u8;
         }
@@ -810,7 +805,7 @@ impl CollapsePlan {
         let Kind::Interior(a, b) = arena[n as usize].kind else {
             unreachable!("a wide node is an interior node");
         };
-        let j = self.own[n as usize - self.first] as usize;
+        let j = self.spread[n as usize - self.first][WIDTH - 1] as usize;
         let mut kids: ArrayVec<u32, WIDTH> = ArrayVec::new();
         self.slots(arena, a, j, &mut kids);
         self.slots(arena, b, WIDTH - j, &mut kids);
@@ -1504,8 +1499,9 @@ mod tests {
                             if wide.less(c) { (wide, 0) } else { (c, j) };
                     }
                 }
+                let plan_own: Vec<u8> = plan.spread.iter().map(|s| s[WIDTH - 1]).collect();
                 assert_eq!(
-                    plan.own, own,
+                    plan_own, own,
                     "{n} leaves, {shapes} shapes: the nodes' own splits"
                 );
                 assert_eq!(
