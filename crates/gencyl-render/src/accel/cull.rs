@@ -10,8 +10,10 @@
 //! so a hit `x` near `a(u)` gives `|proj(a(u))| <= |x - a(u)| <= R`: the projected hull comes
 //! within `R` of `0`. If it does not, the ray misses. Likewise along the ray: a hit's depth
 //! `z = t |d|` lies within `R` of the hull's depths, which must meet `(tmin, tmax)`. The whole
-//! curve's hull is checked first; if that does not settle it, the halves' hulls (de Casteljau
-//! at `u = 1/2`), which hug the curve closer, recursively a few times.
+//! curve's hull is checked first, across the ray (the depths are projected only for the
+//! pieces that pass: most that reach the test pass beside the ray), by its box in the frame of
+//! its chord first; if that does not settle it, the halves' hulls (de Casteljau at `u = 1/2`),
+//! which hug the curve closer, recursively a few times.
 
 use std::ops::{Add, Mul};
 
@@ -282,13 +284,6 @@ impl RaySpace {
         }
     }
 
-    /// `(x, y)` across the ray, `z` the distance along it.
-    #[inline]
-    fn project(&self, p: DVec3) -> DVec3 {
-        let q = p - self.origin;
-        DVec3::new(q.dot(self.e1), q.dot(self.e2), q.dot(self.e0))
-    }
-
     /// Whether the ray may hit the cylinder with `tmin < t < tmax`: `false` means it surely
     /// does not.
     pub fn may_hit(&self, c: &GeneralizedCylinder, tmin: f64, tmax: f64) -> bool {
@@ -319,18 +314,23 @@ impl RaySpace {
         tmin: f64,
         tmax: f64,
     ) -> bool {
-        let q = piece.sub_bezier(p.map(|x| self.project(x)));
+        let rel = p.map(|x| x - self.origin);
         // Rounding of the projection is about eps |p - o| per coordinate: widen by far more.
         // The points themselves may be off the axis by a few units in their last place (world
-        // points of a packed cylinder): widen by 8 eps |p| for that.
-        let (size, far) = p.iter().fold((0.0f64, 0.0f64), |(m, f), x| {
-            (
-                m.max((*x - self.origin).abs().max_element()),
-                f.max(x.abs().max_element()),
-            )
-        });
+        // points of a packed cylinder): widen by 8 eps |p| for that, with `|p| <= |o| + |p - o|`
+        // (in the largest coordinate).
+        let size = rel.iter().fold(0.0f64, |m, x| m.max(x.abs().max_element()));
+        let far = self.origin.abs().max_element() + size;
         let reach =
             piece_reach(reach_ends, piece) * (1.0 + 1e-9) + 1e-9 * size + 8.0 * f64::EPSILON * far;
+        // Across the ray first: most pieces that get here pass beside it, and need no depths.
+        let across = piece.sub_bezier(rel.map(|x| DVec2::new(x.dot(self.e1), x.dot(self.e2))));
+        let first = within(&across, reach);
+        if first == Reach::Beyond {
+            return false;
+        }
+        let depth = piece.sub_bezier(rel.map(|x| x.dot(self.e0)));
+        let q = std::array::from_fn(|i| across[i].extend(depth[i]));
         // A hit x within R of a(u) has z(x) within R of z(a(u)), and t = z(x) / |d|.
         let (zmin, zmax) = (tmin * self.len, tmax * self.len);
         let zmin = zmin - reach - 1e-9 * zmin.abs();
@@ -341,15 +341,23 @@ impl RaySpace {
             zmin,
             zmax,
             MAX_LEVEL.saturating_sub(piece.level()),
+            Some(first),
         )
     }
 }
 
 /// Whether the ray (the origin of the projection, between depths `zmin` and `zmax`) comes
 /// within `reach` of the hull of the projected Bezier points `q`, or of one of its halves'
-/// hulls, recursively `depth` times. Where the curve itself comes within reach and all of the
+/// hulls, recursively `depth` times (`across`: [`within`] of `q` where the caller has it). Where the curve itself comes within reach and all of the
 /// hull lies between the depths, no half can be cleared: the halving stops there.
-fn piece_may_hit(q: &[DVec3; 4], reach: f64, zmin: f64, zmax: f64, depth: u32) -> bool {
+fn piece_may_hit(
+    q: &[DVec3; 4],
+    reach: f64,
+    zmin: f64,
+    zmax: f64,
+    depth: u32,
+    across: Option<Reach>,
+) -> bool {
     let (lo, hi) = q
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
@@ -358,7 +366,7 @@ fn piece_may_hit(q: &[DVec3; 4], reach: f64, zmin: f64, zmax: f64, depth: u32) -
     if lo > zmax || hi < zmin {
         return false;
     }
-    match within(&q.map(|p| p.truncate()), reach) {
+    match across.unwrap_or_else(|| within(&q.map(|p| p.truncate()), reach)) {
         Reach::Beyond => return false,
         Reach::Curve if lo >= zmin && hi <= zmax => return true,
         _ => {}
@@ -367,8 +375,8 @@ fn piece_may_hit(q: &[DVec3; 4], reach: f64, zmin: f64, zmax: f64, depth: u32) -
         return true;
     }
     let [a, b] = halves(q);
-    piece_may_hit(&a, reach, zmin, zmax, depth - 1)
-        || piece_may_hit(&b, reach, zmin, zmax, depth - 1)
+    piece_may_hit(&a, reach, zmin, zmax, depth - 1, None)
+        || piece_may_hit(&b, reach, zmin, zmax, depth - 1, None)
 }
 
 /// How near the origin a Bezier curve's convex hull comes ([`within`]).
@@ -390,12 +398,27 @@ fn within(q: &[DVec2; 4], reach: f64) -> Reach {
     if q[0].length_squared() <= r2 || q[3].length_squared() <= r2 {
         return Reach::Curve;
     }
-    // Quick reject: all points beyond reach on one side of an axis.
-    if q.iter().all(|p| p.x > reach) || q.iter().all(|p| p.x < -reach) {
-        return Reach::Beyond;
-    }
-    if q.iter().all(|p| p.y > reach) || q.iter().all(|p| p.y < -reach) {
-        return Reach::Beyond;
+    // The hull in the chord's frame (a fat line, and its ends): with `e = q3 - q0`, a point's
+    // offsets from `q0` across the chord, `(x - q0) x e`, and along it, `(x - q0).e`, are
+    // linear, so over the hull they lie between their least and largest values at the four
+    // points (`0` at `q0`; `0` and `|e|^2` at `q3`). Where the origin's offsets, `-q0 x e` and
+    // `-q0.e`, lie more than `reach |e|` outside either range, the hull stays beyond reach
+    // (offsets over `|e|` are distances, or less). Their rounding is a few units of `|q| |e|`,
+    // far inside `reach`'s margin of `1e-9` of the coordinates.
+    let e = q[3] - q[0];
+    let len2 = e.length_squared();
+    if len2 > 0.0 {
+        let band = reach * len2.sqrt();
+        let (d1, d2) = (q[1] - q[0], q[2] - q[0]);
+        let (c0, c1, c2) = (e.perp_dot(q[0]), d1.perp_dot(e), d2.perp_dot(e));
+        let (a0, a1, a2) = (-q[0].dot(e), d1.dot(e), d2.dot(e));
+        if c0 > c1.max(c2).max(0.0) + band
+            || c0 < c1.min(c2).min(0.0) - band
+            || a0 > a1.max(a2).max(len2) + band
+            || a0 < a1.min(a2).min(0.0) - band
+        {
+            return Reach::Beyond;
+        }
     }
     // Every hull point lies within `dev` of the chord `q0 q3` (the distance to a segment is
     // convex, so its largest value on the hull is at a corner: 0 at the chord's ends, at most
