@@ -811,16 +811,15 @@ impl CollapsePlan {
         self.slots(arena, b, WIDTH - j, &mut kids);
         let me = out.len();
         out.push(Node {
-            min: [[f32::INFINITY; WIDTH]; 3],
-            max: [[f32::INFINITY; WIDTH]; 3],
+            planes: [[[f32::INFINITY; WIDTH]; 3]; 2],
             child: [Child::EMPTY; WIDTH],
         });
         for (i, &kid) in kids.iter().enumerate() {
             let b = arena[kid as usize].bounds;
             let (lo, hi) = (b.lo(), b.hi());
             for k in 0..3 {
-                out[me].min[k][i] = relative_down(lo[k], center[k]);
-                out[me].max[k][i] = relative_up(hi[k], center[k]);
+                out[me].planes[0][k][i] = relative_down(lo[k], center[k]);
+                out[me].planes[1][k][i] = relative_up(hi[k], center[k]);
             }
             out[me].child[i] = match arena[kid as usize].kind {
                 Kind::Leaf(slot) => slot,
@@ -893,7 +892,7 @@ pub(super) fn collapse_both_ways(boxes: &[Aabb]) -> [(usize, f64); 2] {
             .filter(|&i| n.child[i].count != u32::MAX)
             .fold(Bounds::EMPTY, |b, i| {
                 let lane = |c: &[[f32; WIDTH]; 3]| f32x4::new([c[0][i], c[1][i], c[2][i], 0.0]);
-                b.union(&Bounds::of(lane(&n.min), lane(&n.max)))
+                b.union(&Bounds::of(lane(n.min()), lane(n.max())))
             });
         b.half_area()
     };

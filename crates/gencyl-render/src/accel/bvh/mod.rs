@@ -65,9 +65,23 @@ impl Child {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 struct Node {
-    min: [[f32; WIDTH]; 3],
-    max: [[f32; WIDTH]; 3],
+    /// `planes[0]`: the lower bounds, `planes[1]` the upper ones.
+    planes: [[[f32; WIDTH]; 3]; 2],
     child: [Child; WIDTH],
+}
+
+impl Node {
+    /// The children's lower bounds by axis and lane.
+    #[inline]
+    fn min(&self) -> &[[f32; WIDTH]; 3] {
+        &self.planes[0]
+    }
+
+    /// The children's upper bounds by axis and lane.
+    #[inline]
+    fn max(&self) -> &[[f32; WIDTH]; 3] {
+        &self.planes[1]
+    }
 }
 
 /// A BVH over primitives given by their boxes, named by `u32` keys (by default their indices).
@@ -212,12 +226,36 @@ impl Bvh {
             return;
         }
         if let Some(fast) = Slabs32::<false>::new(&slab, tmin, &self.extent) {
-            self.walk(root, &fast, tmin, tmax, prefetch_leaf, visit);
+            // The test of the ray's octant, whose near planes are known when compiled.
+            let range = (tmin, tmax);
+            match fast.octant() {
+                0 => self.walk_in(root, &Octant::<0>(&fast), range, prefetch_leaf, visit),
+                1 => self.walk_in(root, &Octant::<1>(&fast), range, prefetch_leaf, visit),
+                2 => self.walk_in(root, &Octant::<2>(&fast), range, prefetch_leaf, visit),
+                3 => self.walk_in(root, &Octant::<3>(&fast), range, prefetch_leaf, visit),
+                4 => self.walk_in(root, &Octant::<4>(&fast), range, prefetch_leaf, visit),
+                5 => self.walk_in(root, &Octant::<5>(&fast), range, prefetch_leaf, visit),
+                6 => self.walk_in(root, &Octant::<6>(&fast), range, prefetch_leaf, visit),
+                _ => self.walk_in(root, &Octant::<7>(&fast), range, prefetch_leaf, visit),
+            }
         } else if let Some(fast) = Slabs32::<true>::new(&slab, tmin, &self.extent) {
             self.walk(root, &fast, tmin, tmax, prefetch_leaf, visit);
         } else {
             self.walk(root, &slab, tmin, tmax, prefetch_leaf, visit);
         }
+    }
+
+    /// [`Self::walk`] over the range `(tmin, tmax)`.
+    #[inline]
+    fn walk_in<B: BoxTest>(
+        &self,
+        root: Child,
+        slab: &B,
+        (tmin, tmax): (f64, f64),
+        prefetch_leaf: impl Fn(&[u32]),
+        visit: impl FnMut(u32, f64) -> f64,
+    ) {
+        self.walk(root, slab, tmin, tmax, prefetch_leaf, visit);
     }
 
     /// The traversal proper, with the box test `slab`.
@@ -397,7 +435,7 @@ impl BoxTest for Slabs {
             let mut t1 = f64x4::splat(tmax.min(f64::MAX));
             let mut inside = f64x4::splat(0.0).cmp_le(f64x4::splat(0.0));
             for k in 0..3 {
-                let (lo, hi) = (lanes(&n.min[k], h), lanes(&n.max[k], h));
+                let (lo, hi) = (lanes(&n.min()[k], h), lanes(&n.max()[k], h));
                 let o = f64x4::splat(self.origin[k]);
                 if self.flat[k] {
                     inside = inside & lo.cmp_le(o) & hi.cmp_ge(o);
@@ -429,21 +467,26 @@ impl BoxTest for Slabs {
 /// only positive values can decide. `TINY` covers underflow.
 ///
 /// Which of a box's planes is near depends only on the ray (the sign of `d`), so each axis'
-/// lower plane `lo` and upper plane `hi` are given the origin and inverse of their role once
-/// per ray, and a node's test is `a = (lo - o_lo) inv_lo`, `b = (hi - o_hi) inv_hi`, entry
-/// `max_k min(a, b)`, exit `min_k max(a, b)`: `min(a, b)` is the near value or below it and
-/// `max(a, b)` the far value or above it, so no box the exact test meets is missed. An empty
-/// slot is `+inf..+inf`: `a = b = +inf` (entry `+inf`) or `-inf` (exit `-inf`), never met,
-/// since the range ends at `f32::MAX` at most and the test takes only rays for which every
-/// real box's `a` and `b` are finite: `(extent + |o|) |1/d| <= F32_REACH` on each axis.
+/// near and far planes are chosen, and given the origin and inverse of their role, once per
+/// ray; a node's test is `a = (near - o_near) inv_near`, `b = (far - o_far) inv_far`, entry
+/// `max_k a`, exit `min_k b`: `a` is the near value or below it and `b` the far value or above
+/// it, so no box the exact test meets is missed. (The choice is made when compiled for rays
+/// without a flat axis, [`Octant`], at run time by an index for the others.) An empty slot is
+/// `+inf..+inf`: `a = b = +inf` (entry `+inf`) or `-inf` (exit `-inf`), never met, since the
+/// range ends at `f32::MAX` at most and the test takes only rays for which every real box's
+/// `a` and `b` are finite: `(extent + |o|) |1/d| <= F32_REACH` on each axis.
 struct Slabs32<const FLAT: bool> {
-    /// The origin and inverse direction for each axis' lower and upper plane. On a flat axis
-    /// `o_lo` is the origin rounded up and `o_hi` rounded down (the box holds the ray's line
-    /// where `lo <= o_lo` and `hi >= o_hi`).
-    o_lo: [f32x8; 3],
-    o_hi: [f32x8; 3],
-    inv_lo: [f32x8; 3],
-    inv_hi: [f32x8; 3],
+    /// Per axis, which of a node's plane sets ([`Node::planes`]) the ray meets first: `1`
+    /// (the upper planes) where `d < 0`, else `0`; the other set is the far one.
+    near: [usize; 3],
+    /// The origin and inverse direction for each axis' near and far plane: the lower plane's
+    /// origin is the origin rounded up, the upper plane's rounded down. On a flat axis the near
+    /// planes are the lower ones (the box holds the ray's line where `lo <= o_near` and
+    /// `hi >= o_far`).
+    o_near: [f32x8; 3],
+    o_far: [f32x8; 3],
+    inv_near: [f32x8; 3],
+    inv_far: [f32x8; 3],
     flat: [bool; 3],
     tmin: f32x8,
 }
@@ -476,10 +519,11 @@ impl<const FLAT: bool> Slabs32<FLAT> {
         if !(0..3).all(suits) {
             return None;
         }
-        let mut o_lo = [0.0f32; 3];
-        let mut o_hi = [0.0f32; 3];
-        let mut inv_lo = [0.0f32; 3];
-        let mut inv_hi = [0.0f32; 3];
+        let mut near = [0usize; 3];
+        let mut o_near = [0.0f32; 3];
+        let mut o_far = [0.0f32; 3];
+        let mut inv_near = [0.0f32; 3];
+        let mut inv_far = [0.0f32; 3];
         for k in 0..3 {
             // `o - c` was rounded to the nearest f64: `at_or_above` and `at_or_below` widen by
             // far more than its ulp.
@@ -493,18 +537,19 @@ impl<const FLAT: bool> Slabs32<FLAT> {
             // whichever is near (`x' <= x` at the near plane where d > 0, `x' >= x` at the far
             // one where d < 0, and the other way round at the upper plane); the near plane is
             // the lower one where d > 0, the upper one where d < 0.
-            (o_lo[k], o_hi[k]) = (o_up, o_down);
-            (inv_lo[k], inv_hi[k]) = if s.neg[k] {
-                (far_inv, near_inv)
+            (near[k], o_near[k], o_far[k]) = if s.neg[k] {
+                (1, o_down, o_up)
             } else {
-                (near_inv, far_inv)
+                (0, o_up, o_down)
             };
+            (inv_near[k], inv_far[k]) = (near_inv, far_inv);
         }
         Some(Slabs32 {
-            o_lo: o_lo.map(f32x8::splat),
-            o_hi: o_hi.map(f32x8::splat),
-            inv_lo: inv_lo.map(f32x8::splat),
-            inv_hi: inv_hi.map(f32x8::splat),
+            near,
+            o_near: o_near.map(f32x8::splat),
+            o_far: o_far.map(f32x8::splat),
+            inv_near: inv_near.map(f32x8::splat),
+            inv_far: inv_far.map(f32x8::splat),
             flat: s.flat,
             tmin: f32x8::splat(if tmin <= F32_SAFE {
                 at_or_below(tmin)
@@ -512,6 +557,48 @@ impl<const FLAT: bool> Slabs32<FLAT> {
                 f32::MAX
             }),
         })
+    }
+}
+
+impl Slabs32<false> {
+    /// The ray's octant: bit `k` set where `d_k < 0` (its near planes on axis `k` are the
+    /// upper ones).
+    fn octant(&self) -> usize {
+        self.near[0] | self.near[1] << 1 | self.near[2] << 2
+    }
+}
+
+/// [`Slabs32`]'s test for a ray without a flat axis in the octant `OCT` ([`Slabs32::octant`]):
+/// each axis' near and far planes are known when compiled, so a node's test loads them
+/// directly, without choosing between the two at run time (a choice by `min` and `max` costs
+/// a node two more operations an axis and group, one by an index the addresses).
+struct Octant<'a, const OCT: usize>(&'a Slabs32<false>);
+
+impl<const OCT: usize> BoxTest for Octant<'_, OCT> {
+    type T = f32;
+
+    #[inline]
+    fn limit(&self, tmax: f64) -> f32 {
+        self.0.limit(tmax)
+    }
+
+    #[inline]
+    fn entries(&self, n: &Node, limit: f32) -> ([f32; WIDTH], i32) {
+        let s = self.0;
+        let mut t0 = s.tmin;
+        let mut t1 = f32x8::splat(limit);
+        for k in 0..3 {
+            let near = (OCT >> k) & 1;
+            let (a, b) = (
+                f32x8::from(n.planes[near][k]),
+                f32x8::from(n.planes[1 - near][k]),
+            );
+            t0 = t0.fast_max((a - s.o_near[k]) * s.inv_near[k]);
+            t1 = t1.fast_min((b - s.o_far[k]) * s.inv_far[k]);
+        }
+        let t0 = t0 - f32x8::splat(TINY);
+        let met = t0.cmp_le(t1 + f32x8::splat(TINY));
+        (t0.to_array(), met.move_mask())
     }
 }
 
@@ -552,15 +639,17 @@ impl<const FLAT: bool> BoxTest for Slabs32<FLAT> {
         let mut t1 = f32x8::splat(limit);
         let mut inside = f32x8::splat(0.0).cmp_le(f32x8::splat(0.0));
         for k in 0..3 {
-            let (lo, hi) = (f32x8::from(n.min[k]), f32x8::from(n.max[k]));
+            let near = self.near[k] & 1;
+            let (a, b) = (
+                f32x8::from(n.planes[near][k]),
+                f32x8::from(n.planes[near ^ 1][k]),
+            );
             if FLAT && self.flat[k] {
-                inside = inside & lo.cmp_le(self.o_lo[k]) & hi.cmp_ge(self.o_hi[k]);
+                inside = inside & a.cmp_le(self.o_near[k]) & b.cmp_ge(self.o_far[k]);
                 continue;
             }
-            let a = (lo - self.o_lo[k]) * self.inv_lo[k];
-            let b = (hi - self.o_hi[k]) * self.inv_hi[k];
-            t0 = t0.fast_max(a.fast_min(b));
-            t1 = t1.fast_min(a.fast_max(b));
+            t0 = t0.fast_max((a - self.o_near[k]) * self.inv_near[k]);
+            t1 = t1.fast_min((b - self.o_far[k]) * self.inv_far[k]);
         }
         let t0 = t0 - f32x8::splat(TINY);
         let met = t0.cmp_le(t1 + f32x8::splat(TINY));
@@ -1005,8 +1094,8 @@ mod tests {
                 if child.count == u32::MAX {
                     continue;
                 }
-                let lo: [f32; 3] = std::array::from_fn(|k| n.min[k][i]);
-                let hi: [f32; 3] = std::array::from_fn(|k| n.max[k][i]);
+                let lo: [f32; 3] = std::array::from_fn(|k| n.min()[k][i]);
+                let hi: [f32; 3] = std::array::from_fn(|k| n.max()[k][i]);
                 if let Some((plo, phi)) = bx {
                     for k in 0..3 {
                         assert!(
