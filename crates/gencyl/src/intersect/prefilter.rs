@@ -109,8 +109,9 @@ fn reach_polynomial<C: CrossSection, S: SweepRule>(
             f[i + j] += e[i].dot(e[j]);
         }
     }
-    // The largest product of two terms' lengths.
-    let longest = e.iter().fold(0.0f64, |m, x| m.max(x.length()));
+    // The largest product of two terms' lengths (one square root: it is monotone and
+    // correctly rounded, so this is the largest of the lengths to the bit).
+    let longest = e.iter().fold(0.0f64, |m, x| m.max(x.length_squared())).sqrt();
     let size = longest * longest;
     let dr = r[1] - r[0];
     f[0] -= r[0] * r[0];
@@ -219,17 +220,13 @@ fn cover(
 /// `Q(u*) + Q''(u*) (u - u*)^2 / 2 <= 0` is taken 1.5 times as wide, plus a margin. Only speed
 /// depends on the estimate: the caller keeps this range and searches the rest rigorously.
 fn core_range(f: &[f64; DEGREE + 1]) -> Option<(f64, f64)> {
-    let q = |u: f64| f.iter().rev().fold(0.0, |acc, &c| acc * u + c);
-    let q1 = |u: f64| {
-        (1..=DEGREE)
-            .rev()
-            .fold(0.0, |acc, k| acc * u + k as f64 * f[k])
-    };
-    let q2 = |u: f64| {
-        (2..=DEGREE)
-            .rev()
-            .fold(0.0, |acc, k| acc * u + (k * (k - 1)) as f64 * f[k])
-    };
+    // The derivatives' coefficients, made once for the iterations.
+    let f1: [f64; DEGREE] = std::array::from_fn(|k| (k + 1) as f64 * f[k + 1]);
+    let f2: [f64; DEGREE - 1] = std::array::from_fn(|k| ((k + 2) * (k + 1)) as f64 * f[k + 2]);
+    let horner = |c: &[f64], u: f64| c.iter().rev().fold(0.0, |acc, &c| acc * u + c);
+    let q = |u: f64| horner(f, u);
+    let q1 = |u: f64| horner(&f1, u);
+    let q2 = |u: f64| horner(&f2, u);
     let mut u = 0.5;
     for _ in 0..6 {
         let (g, h) = (q1(u), q2(u));
