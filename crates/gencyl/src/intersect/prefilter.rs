@@ -111,7 +111,10 @@ fn reach_polynomial<C: CrossSection, S: SweepRule>(
     }
     // The largest product of two terms' lengths (one square root: it is monotone and
     // correctly rounded, so this is the largest of the lengths to the bit).
-    let longest = e.iter().fold(0.0f64, |m, x| m.max(x.length_squared())).sqrt();
+    let longest = e
+        .iter()
+        .fold(0.0f64, |m, x| m.max(x.length_squared()))
+        .sqrt();
     let size = longest * longest;
     let dr = r[1] - r[0];
     f[0] -= r[0] * r[0];
