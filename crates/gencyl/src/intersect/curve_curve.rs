@@ -525,23 +525,27 @@ pub(crate) type Found = ArrayVec<(f64, f64), 64>;
 
 /// Whether `(u, v)` is (to rounding) a root already found: neighbouring leaf pairs converge
 /// to the same root.
-pub(crate) fn is_known(found: &Found, u: f64, v: f64) -> bool {
+pub(crate) fn is_known(found: &[(f64, f64)], u: f64, v: f64) -> bool {
     found.iter().any(|&(ku, kv)| {
         let dv = (kv - v).abs();
         (ku - u).abs() <= 1e-12 * (1.0 + u.abs()) && dv.min(std::f64::consts::TAU - dv) <= 1e-9
     })
 }
 
-/// Keeps one of each root found more than once (from neighbouring ranges), sorted by `u`.
+/// Keeps one of each root found more than once (from neighbouring ranges), sorted by `u`: in
+/// place, the first `kept` entries those kept so far (no second array, whose move would copy
+/// all of its capacity).
 pub(crate) fn dedupe(found: &mut Found) {
     found.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut kept = Found::new();
-    for &(u, v) in found.iter() {
-        if !is_known(&kept, u, v) {
-            kept.push((u, v));
+    let mut kept = 0;
+    for i in 0..found.len() {
+        let (u, v) = found[i];
+        if !is_known(&found[..kept], u, v) {
+            found[kept] = (u, v);
+            kept += 1;
         }
     }
-    *found = kept;
+    found.truncate(kept);
 }
 
 #[cfg(test)]

@@ -764,7 +764,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 }
             }
         }
-        self.push_general_roots(o, d, found, out);
+        self.push_general_roots(o, d, &mut found, out);
     }
 
     /// The General method's roots `(u, v)` on `[a, b]`, where `phi` lies in the disc of radius
@@ -797,16 +797,18 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         all && subdivided
     }
 
-    /// The General method's roots `found`, each once, as side roots (`w` at `u`) in `out`.
+    /// The General method's roots `found`, each once, as side roots (`w` at `u`) in `out`
+    /// (`found` is left deduplicated; taken by reference, since a move would copy all of its
+    /// capacity).
     pub(crate) fn push_general_roots(
         &self,
         o: DVec3,
         d: DVec3,
-        mut found: curve_curve::Found,
+        found: &mut curve_curve::Found,
         out: &mut SideRoots,
     ) {
-        curve_curve::dedupe(&mut found);
-        for (u, v) in found {
+        curve_curve::dedupe(found);
+        for &(u, v) in found.iter() {
             let w = self.plane_w_r(o, d, u);
             if w.is_finite() {
                 push_side_root(out, SideRoot { u, w, v });

@@ -122,10 +122,11 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     let pieces = cyl.section.implicit_pieces();
     let k = pieces.len() as f64;
     let qs = cyl.q_scale(d);
-    let shared: ArrayVec<SharedPhi<C, S>, 9> = stretches
-        .iter()
-        .map(|&r| SharedPhi::new(cyl, (o, d), r))
-        .collect();
+    // Pushed in place (collecting would move the whole array, hundreds of bytes a stretch).
+    let mut shared: ArrayVec<SharedPhi<C, S>, 9> = ArrayVec::new();
+    for &r in &stretches {
+        shared.push(SharedPhi::new(cyl, (o, d), r));
+    }
     for (i, piece) in pieces.iter().enumerate() {
         let Some(piece) = piece else { continue };
         // |Q| <= qs, and |X_local|, |Y_local| <= |Q| |xi|.

@@ -204,7 +204,7 @@ impl RadialCells {
                 if !all {
                     crate::budget::note_exhausted();
                 }
-                cyl.push_general_roots(o, d, found, out);
+                cyl.push_general_roots(o, d, &mut found, out);
                 let _ = self.free.try_push(i);
                 return ArrayVec::new();
             }
