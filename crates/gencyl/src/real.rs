@@ -157,15 +157,19 @@ impl Real for f64 {
 /// ([`TRIG_ERR`]).
 ///
 /// `x = k pi/2 + r` with `k` an integer nearest to `x 2/pi` and `|r| <= pi/4` (a little
-/// more from rounding), `r` by Cody and Waite's three-part `pi/2`: the first two parts hold 33
-/// bits each, so `k P1` and `k P2` are exact for `|k| < 2^20`, and `r` is within about an ulp
-/// of `pi/4` of the truth. On `r` the Taylor series, to `r^17` for the sine and `r^16` for the
-/// cosine, leave out less than `1e-19`. Then the quadrant `k mod 4` swaps and signs them.
-/// Beyond `|x| = 2^19` (never a sweep's rotation), or for NaN and infinities, the library's.
+/// more from rounding), `r` by Cody and Waite's three-part `pi/2`: the first two parts hold 31
+/// and 32 significant bits, so `k P1` and `k P2` are exact for `|k| < 2^21` (here `|k| <
+/// 2^19`), and `r` is within about an ulp of `pi/4` of the truth. On `r` the Taylor series, to
+/// `r^17` for the sine and `r^16` for the cosine, leave out less than `1e-19` and `3e-18`
+/// (0.02 ulp). Then the quadrant `k mod 4` swaps and signs them. Beyond `|x| = 2^19` (never a
+/// sweep's rotation), or for NaN and infinities, the library's. (A review measured it against
+/// mpmath: within 2.11 ulp of the true values on 200,000 angles and beside multiples of `pi/2`.)
+/// `Real::sin` and `Real::cos` alone stay the library's: a value taken both ways may differ by
+/// an ulp or two.
 #[inline]
 pub fn sin_cos(x: f64) -> (f64, f64) {
-    const P1: f64 = 1.5707963267341256; // pi/2 to 33 bits
-    const P2: f64 = 6.077100506303966e-11; // the next 33 bits
+    const P1: f64 = 1.5707963267341256; // pi/2 to 31 significant bits (33 truncated)
+    const P2: f64 = 6.077100506303966e-11; // the next 33 bits (32 significant)
     const P3: f64 = 2.0222662487959506e-21; // the rest, rounded
     if !(x.abs() <= 524_288.0) {
         return x.sin_cos();

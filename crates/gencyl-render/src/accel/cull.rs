@@ -10,10 +10,10 @@
 //! so a hit `x` near `a(u)` gives `|proj(a(u))| <= |x - a(u)| <= R`: the projected hull comes
 //! within `R` of `0`. If it does not, the ray misses. Likewise along the ray: a hit's depth
 //! `z = t |d|` lies within `R` of the hull's depths, which must meet `(tmin, tmax)`. The whole
-//! curve's hull is checked first, across the ray (the depths are projected only for the
-//! pieces that pass: most that reach the test pass beside the ray), by its box in the frame of
-//! its chord first; if that does not settle it, the halves' hulls (de Casteljau at `u = 1/2`),
-//! which hug the curve closer, recursively a few times.
+//! curve's hull is checked first, across the ray before its depths are projected (most pieces
+//! that reach the test pass beside the ray), by the hull's box in the frame of its chord
+//! before the finer tests; if that does not settle it, the halves' hulls (de Casteljau at
+//! `u = 1/2`), which hug the curve closer, recursively a few times.
 
 use std::ops::{Add, Mul};
 
@@ -348,8 +348,9 @@ impl RaySpace {
 
 /// Whether the ray (the origin of the projection, between depths `zmin` and `zmax`) comes
 /// within `reach` of the hull of the projected Bezier points `q`, or of one of its halves'
-/// hulls, recursively `depth` times (`across`: [`within`] of `q` where the caller has it). Where the curve itself comes within reach and all of the
-/// hull lies between the depths, no half can be cleared: the halving stops there.
+/// hulls, recursively `depth` times (`across`: [`within`] of `q` where the caller has it).
+/// Where the curve itself comes within reach and all of the hull lies between the depths, no
+/// half can be cleared: the halving stops there.
 fn piece_may_hit(
     q: &[DVec3; 4],
     reach: f64,
