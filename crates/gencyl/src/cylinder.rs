@@ -852,21 +852,35 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     }
 
     /// [`Self::axis_jet_r`] with `p` the ray's point `o + w d` in the normal plane at `u`'s
-    /// representative value, `w` = [`Self::plane_w_r`] there (`o` where that is not finite). For
-    /// point types `a` and `a'` at `u` are computed once, for `w` and for the jet (their values
-    /// are `f64`'s to the bit).
+    /// representative value, `w` = [`Self::plane_w_r`] there (`o` where that is not finite):
+    /// `[a - p, a']`, and `a''` where the jet gives it with them (enclosure types; point types
+    /// leave it to [`Self::second_or`], for the framings that use it). For point types `a` and
+    /// `a'` at `u` are computed once, for `w` and for the jet (their values are `f64`'s to the
+    /// bit).
     #[inline(always)]
-    pub(crate) fn axis_jet_near_r<T: Real>(&self, u: T, o: DVec3, d: DVec3) -> [V3<T>; 3] {
+    pub(crate) fn axis_jet_near_r<T: Real>(
+        &self,
+        u: T,
+        o: DVec3,
+        d: DVec3,
+    ) -> ([V3<T>; 2], Option<V3<T>>) {
         let near = |w: f64| if w.is_finite() { o + w * d } else { o };
         if T::ENCLOSURE {
-            return self.axis_jet_r(u, near(self.plane_w_r(o, d, u.value())));
+            let [ao, d1, d2] = self.axis_jet_r(u, near(self.plane_w_r(o, d, u.value())));
+            return ([ao, d1], Some(d2));
         }
         let (a, d1) = (self.axis.point_r(u), self.axis.d1_r(u));
         // plane_w_r's expression over the values.
         let (av, d1v) = (a.value(), d1.value());
         let (av, d1v) = (V3::new(av.x, av.y, av.z), V3::new(d1v.x, d1v.y, d1v.z));
         let w = d1v.dot(av - V3::cst(o)) / d1v.dot_cst(d);
-        [a - V3::cst(near(w)), d1, self.axis.d2_r(u)]
+        ([a - V3::cst(near(w)), d1], None)
+    }
+
+    /// `a''(u)`: the one [`Self::axis_jet_near_r`] gave, else computed.
+    #[inline(always)]
+    fn second_or<T: Real>(&self, u: T, given: Option<V3<T>>) -> V3<T> {
+        given.unwrap_or_else(|| self.axis.d2_r(u))
     }
 
     /// `(a(u) - p, a'(u), a''(u))`.
@@ -927,7 +941,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// strand ends) it goes through [`frame_r`], which takes the frame nearby.
     #[inline(always)]
     pub(crate) fn radial_g_r<T: Real>(&self, o: DVec3, d: DVec3, u: T, radius: f64) -> T {
-        let [ao, d1, d2] = self.axis_jet_near_r(u, o, d);
+        let ([ao, d1], d2) = self.axis_jet_near_r(u, o, d);
         let e = V3::new(-ao.x, -ao.y, -ao.z);
         let q = d1.dot_cst(d);
         let m = d1.dot(e);
@@ -962,7 +976,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     let p = self.sweep.inverse(u, V2::new(n.dot(v), b.dot(v)));
                     return p.norm2() - rq2;
                 }
-                let d2 = self.reduced_second_r(u, d2);
+                let d2 = self.reduced_second_r(u, self.second_or(u, d2));
                 let c = d1.cross(d2);
                 let p = self
                     .sweep
@@ -982,7 +996,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// homogeneous in `(X, Y, Q)` keeps its sign and its zeros.
     #[inline(always)]
     pub(crate) fn homogeneous_phi_r<T: Real>(&self, o: DVec3, d: DVec3, u: T) -> (V2<T>, T) {
-        let [ao, d1, d2] = self.axis_jet_near_r(u, o, d);
+        let ([ao, d1], d2) = self.axis_jet_near_r(u, o, d);
         let e = V3::new(-ao.x, -ao.y, -ao.z);
         let q = d1.dot_cst(d);
         let m = d1.dot(e);
@@ -1009,7 +1023,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     let [_, n, b] = frame_r(&self.axis, &self.framing, u);
                     return (self.sweep.inverse(u, V2::new(n.dot(v), b.dot(v))), q);
                 }
-                let d2 = self.reduced_second_r(u, d2);
+                let d2 = self.reduced_second_r(u, self.second_or(u, d2));
                 let c = d1.cross(d2);
                 unnormalised(d1.norm2().sqrt() * d2.dot(v), c, &self.sweep)
             }
@@ -1321,14 +1335,18 @@ mod tests {
             let w = c.plane_w_r(o, d, u);
             let p = if w.is_finite() { o + w * d } else { o };
             let bits = |v: V3<f64>| [v.x, v.y, v.z].map(f64::to_bits);
-            let (got, want) = (c.axis_jet_near_r(u, o, d), c.axis_jet_r(u, p));
-            assert_eq!(got.map(bits), want.map(bits), "case {case}: f64");
+            let ([ao, d1], d2) = c.axis_jet_near_r(u, o, d);
+            let got = [ao, d1, c.second_or(u, d2)];
+            assert_eq!(
+                got.map(bits),
+                c.axis_jet_r(u, p).map(bits),
+                "case {case}: f64"
+            );
             let dual_bits =
                 |v: V3<Dual<f64>>| [v.x, v.y, v.z].map(|x| [x.v.to_bits(), x.d.to_bits()]);
-            let (got, want) = (
-                c.axis_jet_near_r(Dual::var(u), o, d),
-                c.axis_jet_r(Dual::var(u), p),
-            );
+            let ([ao, d1], d2) = c.axis_jet_near_r(Dual::var(u), o, d);
+            let got = [ao, d1, c.second_or(Dual::var(u), d2)];
+            let want = c.axis_jet_r(Dual::var(u), p);
             assert_eq!(got.map(dual_bits), want.map(dual_bits), "case {case}: dual");
         }
     }
