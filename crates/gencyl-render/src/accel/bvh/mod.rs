@@ -570,8 +570,9 @@ impl Slabs32<false> {
 
 /// [`Slabs32`]'s test for a ray without a flat axis in the octant `OCT` ([`Slabs32::octant`]):
 /// each axis' near and far planes are known when compiled, so a node's test loads them
-/// directly, without choosing between the two at run time (a choice by `min` and `max` costs
-/// a node two more operations an axis and group, one by an index the addresses).
+/// directly. (Choosing them at run time costs every node more: by `min` and `max` of the two
+/// planes' values, two operations more for each axis and group of four; by an index, the
+/// address arithmetic, redone in each node.)
 struct Octant<'a, const OCT: usize>(&'a Slabs32<false>);
 
 impl<const OCT: usize> BoxTest for Octant<'_, OCT> {
