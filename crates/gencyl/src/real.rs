@@ -1220,11 +1220,11 @@ mod tests {
     use super::*;
 
     /// The value path's `sin_cos` against the library's: within two units in the last place of
-    /// each value plus `2^-60` (where the value is near zero, both are within about that of
-    /// the truth: `x` is a double, its distance to a multiple of `pi/2` far above it), on
-    /// angles of every magnitude the fast path takes, uniform ones, angles just beside
-    /// multiples of `pi/2` and `pi/4`, and the fast path's edge; exact at zero; the library's
-    /// own beyond it and for NaN and infinities.
+    /// each value, or of `2^-60` where the value is smaller (near a multiple of `pi/2` a double
+    /// angle keeps a distance from it far above that, so both are accurate there in absolute
+    /// terms), on angles of every magnitude the fast path takes, uniform ones, angles just
+    /// beside multiples of `pi/4`, and the fast path's edge; exact at zero; the library's own
+    /// bits beyond the edge and for NaN and infinities.
     #[test]
     fn fast_sin_cos_agrees_with_the_library() {
         let mut rng = crate::test_rng::Lcg(4242);
