@@ -585,21 +585,8 @@ impl<const OCT: usize> BoxTest for Octant<'_, OCT> {
 
     #[inline]
     fn entries(&self, n: &Node, limit: f32) -> ([f32; WIDTH], i32) {
-        let s = self.0;
-        let mut t0 = s.tmin;
-        let mut t1 = f32x8::splat(limit);
-        for k in 0..3 {
-            let near = (OCT >> k) & 1;
-            let (a, b) = (
-                f32x8::from(n.planes[near][k]),
-                f32x8::from(n.planes[1 - near][k]),
-            );
-            t0 = t0.fast_max((a - s.o_near[k]) * s.inv_near[k]);
-            t1 = t1.fast_min((b - s.o_far[k]) * s.inv_far[k]);
-        }
-        let t0 = t0 - f32x8::splat(TINY);
-        let met = t0.cmp_le(t1 + f32x8::splat(TINY));
-        (t0.to_array(), met.move_mask())
+        self.0
+            .entries_with(n, limit, [OCT & 1, (OCT >> 1) & 1, (OCT >> 2) & 1])
     }
 }
 
@@ -636,11 +623,20 @@ impl<const FLAT: bool> BoxTest for Slabs32<FLAT> {
 
     #[inline]
     fn entries(&self, n: &Node, limit: f32) -> ([f32; WIDTH], i32) {
+        self.entries_with(n, limit, self.near)
+    }
+}
+
+impl<const FLAT: bool> Slabs32<FLAT> {
+    /// [`BoxTest::entries`] with each axis' near plane set `near[k]` (`self.near`, or the
+    /// same values known when compiled: [`Octant`]).
+    #[inline(always)]
+    fn entries_with(&self, n: &Node, limit: f32, near: [usize; 3]) -> ([f32; WIDTH], i32) {
         let mut t0 = self.tmin;
         let mut t1 = f32x8::splat(limit);
         let mut inside = f32x8::splat(0.0).cmp_le(f32x8::splat(0.0));
         for k in 0..3 {
-            let near = self.near[k] & 1;
+            let near = near[k] & 1;
             let (a, b) = (
                 f32x8::from(n.planes[near][k]),
                 f32x8::from(n.planes[near ^ 1][k]),
