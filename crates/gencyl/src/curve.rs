@@ -48,11 +48,12 @@ impl CubicBezier {
         ]
     }
 
-    /// `[1 / max |a'|, 1 / max |a''|]` over the hodographs' control points (1 for a vanishing
-    /// one): the frame does not change when `a'` and `a''` are scaled by positive constants, and
-    /// scaled to unit size their products neither underflow nor overflow at any scale of the
-    /// curve (a fiber `1e-150` across squares its derivatives to `1e-300` and their cross
-    /// product's square to `1e-600`).
+    /// Powers of two within a factor 2 of `[1 / max |a'|, 1 / max |a''|]` over the hodographs'
+    /// control points (1 for a vanishing one; [`unit_scale`]): the frame does not change when
+    /// `a'` and `a''` are scaled by positive constants, and scaled to about unit size their
+    /// products neither underflow nor overflow at any scale of the curve (a fiber `1e-150`
+    /// across squares its derivatives to `1e-300` and their cross product's square to
+    /// `1e-600`). Being powers of two they change no bits elsewhere.
     pub fn derivative_scales(&self) -> [f64; 2] {
         [
             self.speed_scale(),
@@ -60,7 +61,9 @@ impl CubicBezier {
         ]
     }
 
-    /// The first of [`Self::derivative_scales`], `1 / max |a'|`, alone.
+    /// The first of [`Self::derivative_scales`], about `1 / max |a'|`, alone (a cylinder keeps
+    /// it: [`crate::GeneralizedCylinder`]'s projection frame scales `a'` by it at every
+    /// evaluation).
     #[inline]
     pub fn speed_scale(&self) -> f64 {
         unit_scale(largest_coordinate(&self.hodograph()))
@@ -272,11 +275,17 @@ fn largest_coordinate(pts: &[DVec3]) -> f64 {
     })
 }
 
-/// `1 / m` for a positive finite size `m`, else 1 (a vanishing or unbounded derivative keeps its
-/// scale).
+/// For a positive finite size `m`, the power of two `2^-e` with `m 2^-e` in `[1, 2)` (in
+/// `[2, 4)` above `2^1023`, where `2^-1023` would not be normal); else 1 (a vanishing or unbounded
+/// derivative keeps its scale). From the bits of `m`: `2^-e` has the biased exponent
+/// `2046 - b` for `m`'s `b` (0 for a subnormal `m`, which gets `2^1023` and stays below 2). A
+/// power of two is exact to multiply by: what is computed from the scaled numbers is the
+/// unscaled result scaled, to the bit, unless a product would have underflowed or overflowed
+/// without it.
 fn unit_scale(m: f64) -> f64 {
     if m > 0.0 && m.is_finite() {
-        1.0 / m
+        let biased = (m.to_bits() >> 52) as i64;
+        f64::from_bits(((2046 - biased).max(1) as u64) << 52)
     } else {
         1.0
     }
@@ -285,6 +294,45 @@ fn unit_scale(m: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The derivative scales are normal powers of two that bring a size to `[1, 2)` (`[2, 4)`
+    /// above `2^1023`, below 2 from a subnormal one); 1 for zero, infinite or NaN sizes.
+    #[test]
+    fn unit_scales_are_powers_of_two_to_unit_size() {
+        let mut sizes = vec![
+            f64::MIN_POSITIVE / 3.0,
+            5e-324,
+            1.0,
+            2.0,
+            1.5,
+            f64::MAX,
+            0.75,
+        ];
+        sizes.extend((0..2000).map(|i| 10f64.powf(-323.0 + 631.0 * i as f64 / 1999.0)));
+        sizes.extend((0..64).map(|k| 2f64.powi(k * 32 - 1074)));
+        for m in sizes {
+            let k = unit_scale(m);
+            assert_eq!(
+                k.to_bits() << 12,
+                0,
+                "{k} for {m} is not a normal power of two"
+            );
+            assert!(k.is_normal(), "{k} for {m}");
+            let unit = m * k;
+            let range = if m >= 2f64.powi(1023) {
+                2.0..4.0
+            } else if m < f64::MIN_POSITIVE {
+                // Subnormal: 2^1023, the largest normal power of two.
+                0.0..2.0
+            } else {
+                1.0..2.0
+            };
+            assert!(range.contains(&unit), "{m} scaled by {k} is {unit}");
+        }
+        for m in [0.0, f64::INFINITY, f64::NAN, -1.0] {
+            assert_eq!(unit_scale(m), 1.0, "{m}");
+        }
+    }
     use crate::real::Dual;
     use crate::test_rng::Dd;
 

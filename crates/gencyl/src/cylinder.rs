@@ -255,6 +255,16 @@ pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
     switches: Option<Box<ArrayVec<f64, 8>>>,
     /// Whether the swept surface may pass through the solid (see [`Self::may_fold`]).
     pub(crate) may_fold: bool,
+    /// The biased exponent of the axis' [`CubicBezier::speed_scale`] (a power of two), kept
+    /// ([`Self::speed_scale`]; in what was the struct's padding): the projection frame's
+    /// functions scale `a'` by it at every evaluation (computing it was 2% of an elliptical
+    /// fiber's test).
+    pub(crate) speed_exponent: u16,
+}
+
+/// The biased exponent of a positive power of two (its bits but for the zero mantissa).
+pub(crate) fn exponent_of(power_of_two: f64) -> u16 {
+    (power_of_two.to_bits() >> 52) as u16
 }
 
 impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
@@ -417,6 +427,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         let may_fold = Self::fold_possible(&unit, r / extent, floor)
             && Self::fold_possible(&unit, r / extent, exact_least());
         Ok(GeneralizedCylinder {
+            speed_exponent: exponent_of(local.speed_scale()),
             axis: local,
             origin,
             framing,
@@ -429,7 +440,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     }
 
     /// A cylinder from parts that were taken from a built one ([`crate::PackedCylinders`]):
-    /// no checks, no frame switches.
+    /// no checks, no frame switches. `speed_exponent` is the built one's (a power of two's, so
+    /// one from an axis that differs by a few ulps would change no result).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn from_packed(
         axis: CubicBezier,
         origin: DVec3,
@@ -438,6 +451,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         sweep: S,
         caps: [bool; 2],
         may_fold: bool,
+        speed_exponent: u16,
     ) -> Self {
         GeneralizedCylinder {
             axis,
@@ -448,7 +462,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             caps,
             switches: None,
             may_fold,
+            speed_exponent,
         }
+    }
+
+    /// The axis' [`CubicBezier::speed_scale`], from the exponent kept.
+    #[inline(always)]
+    pub(crate) fn speed_scale(&self) -> f64 {
+        f64::from_bits(u64::from(self.speed_exponent) << 52)
     }
 
     /// Whether the frame has switches (Frenet's, where `a' x a''` vanishes).
@@ -962,8 +983,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 // As for Frenet with a'' replaced by r: C = a' x r, n.V = |a'| (r.V)/|C|,
                 // b.V = (C.V)/|C| (a'.V = 0). g does not change when a' is scaled (|a'| and C
                 // scale alike), so a' is taken at unit size: no product underflows.
-                let k1 = self.axis.speed_scale();
-                let d1 = d1.scale(k1);
+                let d1 = d1.scale(self.speed_scale());
                 let c = d1.cross_cst(*r);
                 let p = self
                     .sweep
@@ -1014,7 +1034,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 q,
             ),
             Framing::Projected(r) => {
-                let d1 = d1.scale(self.axis.speed_scale());
+                let d1 = d1.scale(self.speed_scale());
                 let c = d1.cross_cst(*r);
                 unnormalised(d1.norm2().sqrt() * v.dot_cst(*r), c, &self.sweep)
             }
@@ -1039,10 +1059,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     pub(crate) fn frame_from_jet_r<T: Real>(&self, u: T, d1: V3<T>, d2: V3<T>) -> [V3<T>; 3] {
         match &self.framing {
             Framing::Fixed(f) => [V3::cst(f.t), V3::cst(f.n), V3::cst(f.b)],
-            Framing::Projected(r) => {
-                let k1 = self.axis.speed_scale();
-                projected_frame(d1.scale(k1), *r)
-            }
+            Framing::Projected(r) => projected_frame(d1.scale(self.speed_scale()), *r),
             Framing::Frenet => {
                 if frenet_shift(&self.axis, u.value()) != 0.0 {
                     return frame_r(&self.axis, &self.framing, u);

@@ -67,6 +67,9 @@ struct Packed {
     /// Where the rest of the axis is in `extra`: `p3` unless joined, or a strand's segment's
     /// tail (the control points past its strand's last in `points`).
     extra: u32,
+    /// The cylinder's `speed_exponent` ([`GeneralizedCylinder::speed_scale`]'s biased
+    /// exponent): in what was the record's padding.
+    speed_exponent: u16,
 }
 
 impl Packed {
@@ -541,6 +544,7 @@ impl PackedCylinders {
             radii: 0,
             flags: Packed::WHOLE,
             extra: 0,
+            speed_exponent: 0,
         }
     }
 
@@ -574,6 +578,7 @@ impl PackedCylinders {
             radii: 0,
             flags: flag | section | caps | (u32::from(c.may_fold()) * Packed::MAY_FOLD),
             extra: 0,
+            speed_exponent: c.speed_exponent,
         })
     }
 
@@ -658,6 +663,7 @@ impl PackedCylinders {
                 r.flags & Packed::CAP_END != 0,
             ],
             r.flags & Packed::MAY_FOLD != 0,
+            r.speed_exponent,
         )
     }
 
