@@ -1000,7 +1000,8 @@ mod tests {
         use std::cell::Cell;
         const THIRD: f64 = 1.0 / 3.0;
         // (f, f', bracket, root): the roots correctly rounded (sqrt) or within an ulp (ln).
-        let cases: [(fn(f64) -> f64, fn(f64) -> f64, (f64, f64), f64); 3] = [
+        type Case = (fn(f64) -> f64, fn(f64) -> f64, (f64, f64), f64);
+        let cases: [Case; 3] = [
             (|x| x * x - 2.0, |x| 2.0 * x, (0.0, 2.0), 2f64.sqrt()),
             (|x| x.exp() - 3.0, |x| x.exp(), (0.0, 2.0), 3f64.ln()),
             (
