@@ -11,10 +11,12 @@ pub struct UnitCircle;
 
 impl CrossSection for UnitCircle {
     fn point(&self, v: f64) -> DVec2 {
-        DVec2::new(v.cos(), v.sin())
+        let (s, c) = crate::real::sin_cos(v);
+        DVec2::new(c, s)
     }
     fn derivative(&self, v: f64) -> DVec2 {
-        DVec2::new(-v.sin(), v.cos())
+        let (s, c) = crate::real::sin_cos(v);
+        DVec2::new(-s, c)
     }
     fn point_r<T: Real>(&self, v: T) -> V2<T> {
         let (s, c) = v.sin_cos();
