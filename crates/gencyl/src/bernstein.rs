@@ -130,7 +130,9 @@ impl<const K: usize> Bernstein<K> {
     }
 
     /// `p q` with `M = K + L - 1` coefficients:
-    /// `c_k = sum_{i + j = k} C(m, i) C(n, j) / C(m + n, k) a_i b_j`.
+    /// `c_k = sum_{i + j = k} C(m, i) C(n, j) / C(m + n, k) a_i b_j`. Each weight is one
+    /// constant (the compiler folds the quotient of the table's entries, correctly rounded), so
+    /// no coefficient is divided at run time.
     #[inline]
     pub fn mul<const L: usize, const M: usize>(&self, o: &Bernstein<L>) -> Bernstein<M> {
         debug_assert_eq!(M, K + L - 1, "degrees add");
@@ -138,11 +140,8 @@ impl<const K: usize> Bernstein<K> {
         let mut c = [0.0; M];
         for (i, &a) in self.0.iter().enumerate() {
             for (j, &b) in o.0.iter().enumerate() {
-                c[i + j] += binomial(m, i) * binomial(n, j) * a * b;
+                c[i + j] += binomial(m, i) * binomial(n, j) / binomial(m + n, i + j) * a * b;
             }
-        }
-        for (k, ck) in c.iter_mut().enumerate() {
-            *ck /= binomial(m + n, k);
         }
         Bernstein(c)
     }
@@ -157,11 +156,8 @@ impl<const K: usize> Bernstein<K> {
         let (m, n) = (K - 1, M - K);
         for (i, &a) in self.0.iter().enumerate() {
             for (j, &b) in one.iter().take(n + 1).enumerate() {
-                c[i + j] += binomial(m, i) * binomial(n, j) * a * b;
+                c[i + j] += binomial(m, i) * binomial(n, j) / binomial(m + n, i + j) * a * b;
             }
-        }
-        for (k, ck) in c.iter_mut().enumerate() {
-            *ck /= binomial(m + n, k);
         }
         Bernstein(c)
     }
