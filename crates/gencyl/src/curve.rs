@@ -294,6 +294,8 @@ fn unit_scale(m: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::real::Dual;
+    use crate::test_rng::Dd;
 
     /// The derivative scales are normal powers of two that bring a size to `[1, 2)` (`[2, 4)`
     /// above `2^1023`, below 2 from a subnormal one); 1 for zero, infinite or NaN sizes.
@@ -333,8 +335,6 @@ mod tests {
             assert_eq!(unit_scale(m), 1.0, "{m}");
         }
     }
-    use crate::real::Dual;
-    use crate::test_rng::Dd;
 
     fn sample() -> CubicBezier {
         CubicBezier::new([

@@ -257,8 +257,8 @@ pub struct GeneralizedCylinder<C = Section, S = HairSweep> {
     pub(crate) may_fold: bool,
     /// The biased exponent of the axis' [`CubicBezier::speed_scale`] (a power of two), kept
     /// ([`Self::speed_scale`]; in what was the struct's padding): the projection frame's
-    /// functions scale `a'` by it at every evaluation (computing it was 2% of an elliptical
-    /// fiber's test).
+    /// functions scale `a'` by it at every evaluation (computing it there was 1.8% of an
+    /// elliptical camera ray's instructions).
     pub(crate) speed_exponent: u16,
 }
 
