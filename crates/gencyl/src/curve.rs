@@ -48,8 +48,9 @@ impl CubicBezier {
         ]
     }
 
-    /// Powers of two within a factor 2 of `[1 / max |a'|, 1 / max |a''|]` over the hodographs'
-    /// control points (1 for a vanishing one; [`unit_scale`]): the frame does not change when
+    /// Powers of two near `[1 / max |a'|, 1 / max |a''|]` over the hodographs' control points
+    /// (within a factor 2 but at the ends of the range; 1 for a vanishing one; [`unit_scale`]):
+    /// the frame does not change when
     /// `a'` and `a''` are scaled by positive constants, and scaled to about unit size their
     /// products neither underflow nor overflow at any scale of the curve (a fiber `1e-150`
     /// across squares its derivatives to `1e-300` and their cross product's square to
