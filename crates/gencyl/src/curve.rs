@@ -50,10 +50,9 @@ impl CubicBezier {
 
     /// Powers of two near `[1 / max |a'|, 1 / max |a''|]` over the hodographs' control points
     /// (within a factor 2 but at the ends of the range; 1 for a vanishing one; [`unit_scale`]):
-    /// the frame does not change when
-    /// `a'` and `a''` are scaled by positive constants, and scaled to about unit size their
-    /// products neither underflow nor overflow at any scale of the curve (a fiber `1e-150`
-    /// across squares its derivatives to `1e-300` and their cross product's square to
+    /// the frame does not change when `a'` and `a''` are scaled by positive constants, and
+    /// scaled to about unit size their products neither underflow nor overflow (a fiber
+    /// `1e-150` across squares its derivatives to `1e-300` and their cross product's square to
     /// `1e-600`). Being powers of two they change no bits elsewhere.
     pub fn derivative_scales(&self) -> [f64; 2] {
         [
