@@ -55,10 +55,7 @@ impl CubicBezier {
     /// `1e-150` across squares its derivatives to `1e-300` and their cross product's square to
     /// `1e-600`). Being powers of two they change no bits elsewhere.
     pub fn derivative_scales(&self) -> [f64; 2] {
-        [
-            self.speed_scale(),
-            unit_scale(largest_coordinate(&self.second_hodograph())),
-        ]
+        [self.speed_scale(), self.second_scale()]
     }
 
     /// The first of [`Self::derivative_scales`], about `1 / max |a'|`, alone (a cylinder keeps
@@ -67,6 +64,12 @@ impl CubicBezier {
     #[inline]
     pub fn speed_scale(&self) -> f64 {
         unit_scale(largest_coordinate(&self.hodograph()))
+    }
+
+    /// The second of [`Self::derivative_scales`], about `1 / max |a''|`, alone.
+    #[inline]
+    pub fn second_scale(&self) -> f64 {
+        unit_scale(largest_coordinate(&self.second_hodograph()))
     }
 
     /// The constant `a'''`.

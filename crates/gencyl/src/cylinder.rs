@@ -1064,9 +1064,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 if frenet_shift(&self.axis, u.value()) != 0.0 {
                     return frame_r(&self.axis, &self.framing, u);
                 }
-                let [k1, k2] = self.axis.derivative_scales();
-                let d1 = d1.scale(k1);
-                let c = d1.cross(self.reduced_second_r(u, d2).scale(k2));
+                let d1 = d1.scale(self.speed_scale());
+                let c = d1.cross(self.reduced_second_r(u, d2).scale(self.axis.second_scale()));
                 let t = d1.divided(d1.norm2().sqrt());
                 let b = c.divided(c.norm2().sqrt());
                 [t, b.cross(t), b]
@@ -1322,6 +1321,31 @@ mod tests {
             median < 1.02 && p90 < 1.6 && p99 < 3.0,
             "widths over the sampled ranges: median {median}, 90% {p90}, 99% {p99}"
         );
+    }
+
+    /// The kept `a'` scale brings the hodograph's largest coordinate to `[1, 2)`, for axes
+    /// from `1e-70` to `1e14` in size (a scale of 1, no scaling at all, fails all but one).
+    #[test]
+    fn kept_speed_scale_brings_the_hodograph_to_unit_size() {
+        let shape = [
+            DVec3::ZERO,
+            DVec3::new(0.3, 0.2, 0.0),
+            DVec3::new(0.7, -0.1, 0.1),
+            DVec3::new(1.0, 0.05, 0.0),
+        ];
+        for e in -70..=14 {
+            let size = 10f64.powi(e);
+            let c = FiberSpec::round(shape.map(|p| p * size), 0.01 * size)
+                .build()
+                .unwrap();
+            let largest = c
+                .axis
+                .hodograph()
+                .iter()
+                .fold(0.0f64, |m, h| m.max(h.abs().max_element()));
+            let unit = largest * c.speed_scale();
+            assert!((1.0..2.0).contains(&unit), "size {size}: {unit}");
+        }
     }
 
     /// The struct's size is most of a hair model's memory: a layout change shows here.
