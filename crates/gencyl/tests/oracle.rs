@@ -364,6 +364,69 @@ fn oracle_taper_nocaps() {
     );
 }
 
+/// Rays on which a Newton iteration that stopped on shrinking steps alone (reverted) returned
+/// a point off the surface: in the Round method's polish, `H = -P +- Z' sqrt(D)` has an infinite
+/// slope where `D = 0`, and an iterate just past it took a tiny step after a long one (found by
+/// an independent review bisecting ray families; random and grazing rays never showed it).
+/// A bent round fiber (first hit at `t` about 1.4882, not 1.5237) and a tapered straight
+/// tube (1.84049, not 1.84105).
+#[test]
+fn oracle_rays_where_newton_steps_shrink_at_an_infinite_slope() {
+    let third = 1.0 / 3.0;
+    let cases = [
+        (
+            Case {
+                name: "bent-round",
+                spec: FiberSpec::round(
+                    [
+                        v3(0.0, 0.0, 0.0),
+                        v3(third, 0.3, 0.0),
+                        v3(2.0 * third, 0.3, 0.0),
+                        v3(1.0, 0.0, 0.0),
+                    ],
+                    0.1,
+                ),
+                loop_points: None,
+            },
+            Ray::new(
+                v3(-1.496694660840368, 0.1162564478080157, -0.1150292552701268),
+                v3(0.998347330420184, 4.576355850904254e-5, 0.05746830212028879),
+            ),
+        ),
+        (
+            Case {
+                name: "tapered-tube",
+                spec: fiber(
+                    [
+                        v3(0.0, 0.0, 0.0),
+                        v3(third, 0.0, 0.0),
+                        v3(2.0 * third, 0.0, 0.0),
+                        v3(1.0, 0.0, 0.0),
+                    ],
+                    [0.1, 0.03],
+                    [0.1, 0.03],
+                    [0.0, 0.0],
+                    true,
+                ),
+                loop_points: None,
+            },
+            Ray::new(
+                v3(
+                    -1.496694660840368,
+                    -0.11493664068332739,
+                    -0.07559329775284829,
+                ),
+                v3(0.998347330420184, 0.057468320341663694, 0.0),
+            ),
+        ),
+    ];
+    for (c, ray) in cases {
+        let o = Oracle::new(&c.spec, None);
+        let rays = [(ray, 0.0, f64::INFINITY), (ray, 0.0, 1.5)];
+        run_rays(&c, &o, &rays, &[(Method::Auto, 2), (Method::Round, 2)]);
+    }
+}
+
 /// The axis of the folding cases: a U-bend, slightly out of its plane (no inflection).
 fn u_bend() -> [DVec3; 4] {
     [
