@@ -110,7 +110,7 @@ pub fn isolate_roots<F: Function1D>(
     opts: &IsolateOptions,
     out: &mut ArrayVec<f64, MAX_ROOTS>,
 ) -> bool {
-    let first = first_cells(f, lo, hi, opts);
+    let first = first_cells(f, lo, hi, opts, FirstRoot::Both);
     let found = isolate_in_cells(f, &first.cells, first.hints, opts, out);
     if found.overflow && found.complete {
         // More roots than `out` holds: those beyond it are lost, and the search is counted
@@ -135,26 +135,40 @@ pub(crate) struct Isolated {
 /// its samples tell their isolation ([`Hints`]: estimates of roots, where Newton's method
 /// starts in a cell that holds one, and whether `f` dipped inside). The cells may be isolated
 /// one by one, in any order, by [`isolate_in_cells`]: a query that wants only the nearest
-/// crossing along a ray takes them by distance and stops early.
+/// crossing along a ray takes them by distance and stops early. Such a query names the end
+/// of `[lo, hi]` whose root it wants first (`first`): the cut that splits off the other root
+/// waits ([`PendingCut`]), and the cells beyond the first root's are one until it is made.
 pub(crate) fn first_cells<F: Function1D>(
     f: &F,
     lo: f64,
     hi: f64,
     opts: &IsolateOptions,
+    first: FirstRoot,
 ) -> FirstCells {
     let point = |u: f64| f.eval(u);
     let (flo, fhi) = (point(lo), point(hi));
     if opts.u_shaped {
-        let (cells, hints) = u_shaped_cells(&point, (lo, hi), (flo, fhi));
-        FirstCells { cells, hints }
+        u_shaped_cells(&point, (lo, hi), (flo, fhi), first)
     } else {
         let mut cells = ArrayVec::new();
         cells.push((lo, hi, flo, fhi));
         FirstCells {
             cells,
             hints: Hints::NONE,
+            pending: None,
         }
     }
+}
+
+/// Which root of a U-shaped interval a query wants first ([`first_cells`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum FirstRoot {
+    /// Both: every cut is made at once.
+    Both,
+    /// The one nearer the interval's lower end.
+    Low,
+    /// The one nearer its upper end.
+    High,
 }
 
 /// What [`first_cells`] returns.
@@ -163,6 +177,55 @@ pub(crate) struct FirstCells {
     pub cells: ArrayVec<Cell, 3>,
     /// What the values sampled to place them tell their isolation.
     pub hints: Hints,
+    /// The cut left for later, with the index of the cell it splits.
+    pub pending: Option<(usize, PendingCut)>,
+}
+
+/// A cut of a U-shaped interval that waits ([`first_cells`] with [`FirstRoot::Low`] or
+/// [`FirstRoot::High`]): the point `x` where `f < 0` (and `f(x)`) and the parabola's estimate
+/// `r` of the root on the side not yet cut. [`PendingCut::make`] gives the cells and hints
+/// that cutting at once would have given, to the bit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PendingCut {
+    x: f64,
+    fx: f64,
+    r: f64,
+    /// Whether the side not yet cut is the upper one.
+    upper: bool,
+}
+
+impl PendingCut {
+    /// Cuts `cell` (the one [`FirstCells::pending`] names, of the cells that came with
+    /// `hints`): its cells, ascending, and the hints with this side's estimate of its root.
+    pub(crate) fn make(
+        self,
+        f: &impl Function1D,
+        (a, b, fa, fb): Cell,
+        hints: Hints,
+    ) -> (ArrayVec<Cell, 2>, Hints) {
+        let point = |u: f64| f.eval(u);
+        let mut cells = ArrayVec::new();
+        let mut guesses = hints.guesses;
+        let x = (self.x, self.fx);
+        if self.upper {
+            // `a` is the lower side's cut point `p`.
+            let ((q, fq), right) = cut_upper(&point, (b, fb), x, self.r);
+            if a < q {
+                cells.push((a, q, fa, fq));
+            }
+            cells.push((q, b, fq, fb));
+            guesses[1] = right.unwrap_or(self.r);
+        } else {
+            // `b` is the upper side's cut point `q`.
+            let ((p, fp), left) = cut_lower(&point, (a, fa), x, self.r);
+            cells.push((a, p, fa, fp));
+            if p < b {
+                cells.push((p, b, fp, fb));
+            }
+            guesses[0] = left.unwrap_or(self.r);
+        }
+        (cells, Hints { guesses, ..hints })
+    }
 }
 
 /// What the values [`first_cells`] samples tell [`isolate_in_cells`] about its cells.
@@ -376,12 +439,14 @@ pub(crate) type Cell = (f64, f64, f64, f64);
 /// side that was cut, the zero of the parabola through its own ends and `x` (`local_zero`; on
 /// the elliptical ponytail a median 5e-7 from the root, 1.1% fewer instructions in its fiber
 /// tests), else `r1` or `r2`; and for the whole interval whether a value sampled inside lies
-/// below both ends' ([`Hints::dips`]).
+/// below both ends' ([`Hints::dips`]). With `first` naming one root, only its side is cut:
+/// the rest is one cell, `[p, hi]` or `[lo, q]`, whose cut waits ([`PendingCut`]).
 fn u_shaped_cells(
     point: &impl Fn(f64) -> f64,
     (lo, hi): (f64, f64),
     (flo, fhi): (f64, f64),
-) -> (ArrayVec<Cell, 3>, Hints) {
+    first: FirstRoot,
+) -> FirstCells {
     let mut cells = ArrayVec::new();
     // The whole interval, with the least value sampled inside it (NaN if none).
     let whole = |mut cells: ArrayVec<Cell, 3>, least: f64| {
@@ -390,7 +455,11 @@ fn u_shaped_cells(
             dips: least < fmin(flo, fhi),
             ..Hints::NONE
         };
-        (cells, hints)
+        FirstCells {
+            cells,
+            hints,
+            pending: None,
+        }
     };
     let m = 0.5 * (lo + hi);
     if !(flo > 0.0 && fhi > 0.0 && lo < m && m < hi) {
@@ -432,37 +501,85 @@ fn u_shaped_cells(
     } else {
         (lo, hi)
     };
-    let cut = |r: f64| {
-        let y = 0.5 * (r + x);
-        let fy = point(y);
-        if fy < 0.0 && lo < y && y < hi {
-            (y, fy)
-        } else {
-            (x, fx)
+    let pending = |upper: bool, r: f64| PendingCut { x, fx, r, upper };
+    let (cells, guesses, pending) = match first {
+        FirstRoot::Both => {
+            let ((p, fp), left) = cut_lower(point, (lo, flo), (x, fx), r1);
+            let ((q, fq), right) = cut_upper(point, (hi, fhi), (x, fx), r2);
+            cells.push((lo, p, flo, fp));
+            if p < q {
+                cells.push((p, q, fp, fq));
+            }
+            cells.push((q, hi, fq, fhi));
+            (cells, [left.unwrap_or(r1), right.unwrap_or(r2)], None)
+        }
+        FirstRoot::Low => {
+            let ((p, fp), left) = cut_lower(point, (lo, flo), (x, fx), r1);
+            cells.push((lo, p, flo, fp));
+            cells.push((p, hi, fp, fhi));
+            (
+                cells,
+                [left.unwrap_or(r1), r2],
+                Some((1, pending(true, r2))),
+            )
+        }
+        FirstRoot::High => {
+            let ((q, fq), right) = cut_upper(point, (hi, fhi), (x, fx), r2);
+            cells.push((lo, q, flo, fq));
+            cells.push((q, hi, fq, fhi));
+            (
+                cells,
+                [r1, right.unwrap_or(r2)],
+                Some((0, pending(false, r1))),
+            )
         }
     };
-    let ((p, fp), (q, fq)) = (cut(r1.clamp(lo, x)), cut(r2.clamp(x, hi)));
-    cells.push((lo, p, flo, fp));
-    if p < q {
-        cells.push((p, q, fp, fq));
+    FirstCells {
+        cells,
+        hints: Hints {
+            guesses,
+            dips: false,
+        },
+        pending,
     }
-    cells.push((q, hi, fq, fhi));
-    // Each side's estimate from the parabola through its own ends and `x`, where it was cut.
+}
+
+/// The lower side's cut of [`u_shaped_cells`]: at `y = (r + x) / 2` (`r` clamped to
+/// `[lo, x]`) where `f(y) < 0` and `y > lo`, else at `x`; and the estimate of the lower root
+/// from the parabola through `lo`, the cut and `x` (`local_zero`), where the cut is below `x`.
+fn cut_lower(
+    point: &impl Fn(f64) -> f64,
+    (lo, flo): (f64, f64),
+    (x, fx): (f64, f64),
+    r: f64,
+) -> ((f64, f64), Option<f64>) {
+    let y = 0.5 * (r.clamp(lo, x) + x);
+    let fy = point(y);
+    let (p, fp) = if fy < 0.0 && lo < y { (y, fy) } else { (x, fx) };
     let left = if p < x {
         local_zero((lo, flo), (p, fp), (x, fx))
     } else {
         None
     };
+    ((p, fp), left)
+}
+
+/// The upper side's cut of [`u_shaped_cells`], as [`cut_lower`]'s mirror image.
+fn cut_upper(
+    point: &impl Fn(f64) -> f64,
+    (hi, fhi): (f64, f64),
+    (x, fx): (f64, f64),
+    r: f64,
+) -> ((f64, f64), Option<f64>) {
+    let y = 0.5 * (r.clamp(x, hi) + x);
+    let fy = point(y);
+    let (q, fq) = if fy < 0.0 && y < hi { (y, fy) } else { (x, fx) };
     let right = if x < q {
         local_zero((q, fq), (hi, fhi), (x, fx))
     } else {
         None
     };
-    let hints = Hints {
-        guesses: [left.unwrap_or(r1), right.unwrap_or(r2)],
-        dips: false,
-    };
-    (cells, hints)
+    ((q, fq), right)
 }
 
 /// The zero in `(a, b)` of the parabola through `(a, fa)`, `(b, fb)` and `(c, fc)` (`c` outside
@@ -1485,7 +1602,12 @@ mod tests {
             }
             assert_both_find(&a, &b, &f.roots, case);
             let point = |u: f64| f.eval(u);
-            let (cells, _) = u_shaped_cells(&point, (0.0, 1.0), (point(0.0), point(1.0)));
+            let FirstCells { cells, .. } = u_shaped_cells(
+                &point,
+                (0.0, 1.0),
+                (point(0.0), point(1.0)),
+                FirstRoot::Both,
+            );
             if point(0.5) < 0.0 {
                 split += 1;
                 assert!(cells.len() >= 2, "case {case}: cut at the middle at least");
@@ -1517,7 +1639,8 @@ mod tests {
         );
         let tangent = |u: f64| Tangent.eval(u);
         for f in [&tangent as &dyn Fn(f64) -> f64, &|u: f64| 1.0 + u * u] {
-            let (cells, _) = u_shaped_cells(&f, (0.0, 1.0), (f(0.0), f(1.0)));
+            let FirstCells { cells, .. } =
+                u_shaped_cells(&f, (0.0, 1.0), (f(0.0), f(1.0)), FirstRoot::Both);
             assert_eq!(cells.len(), 1, "no negative middle, no cut");
         }
         let mut out = ArrayVec::new();
@@ -1579,7 +1702,7 @@ mod tests {
                 },
             };
             let point = |u: f64| f.eval(u);
-            let first = first_cells(&f, 0.0, 1.0, &opts);
+            let first = first_cells(&f, 0.0, 1.0, &opts, FirstRoot::Both);
             // A bowl alone: the middle sample lies below both ends (the vertex is within 0.2
             // of it, the wobble within 10%), positive but at a graze: one whole cell, flagged.
             let bowl = f.roots.is_empty() && least > 0.0;
@@ -1613,10 +1736,12 @@ mod tests {
         assert_eq!(saved, flagged);
         // A monotone function samples no dip; a negative middle is cut, not flagged.
         let rising = |u: f64| 1.0 + u;
-        let (cells, hints) = u_shaped_cells(&rising, (0.0, 1.0), (1.0, 2.0));
+        let FirstCells { cells, hints, .. } =
+            u_shaped_cells(&rising, (0.0, 1.0), (1.0, 2.0), FirstRoot::Both);
         assert!(cells.len() == 1 && !hints.dips);
         let u = |u: f64| (u - 0.3) * (u - 0.7);
-        let (cells, hints) = u_shaped_cells(&u, (0.0, 1.0), (u(0.0), u(1.0)));
+        let FirstCells { cells, hints, .. } =
+            u_shaped_cells(&u, (0.0, 1.0), (u(0.0), u(1.0)), FirstRoot::Both);
         assert!(cells.len() == 3 && !hints.dips, "{cells:?}");
     }
 
@@ -1664,7 +1789,8 @@ mod tests {
             let (r1, r2) = (0.1 + 0.3 * rnd(), 0.6 + 0.3 * rnd());
             let tilt = 0.6 * rnd() - 0.3;
             let f = |u: f64| (u - r1) * (u - r2) * (1.0 + tilt * (u - 0.5));
-            let (cells, hints) = u_shaped_cells(&f, (0.0, 1.0), (f(0.0), f(1.0)));
+            let FirstCells { cells, hints, .. } =
+                u_shaped_cells(&f, (0.0, 1.0), (f(0.0), f(1.0)), FirstRoot::Both);
             assert_eq!(cells.len(), 3, "case {case}");
             let (m, fm) = (0.5, f(0.5));
             // The zeros of the whole interval's parabola (through 0, m and 1).

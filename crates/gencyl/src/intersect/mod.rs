@@ -636,11 +636,23 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// `|a'| / (OBLIQUE |d|)` and the entry and exit lie at least `OBLIQUE` chord / `|a'|` apart
     /// in `u`.
     fn oblique(&self, d: DVec3, a: f64, b: f64) -> bool {
+        self.obliquity(d, a, b).is_some()
+    }
+
+    /// Where [`Self::oblique`]: whether `a'.d > 0` on `[a, b]` (the ray's `w` then rises with
+    /// `u` near the axis).
+    pub(crate) fn obliquity(&self, d: DVec3, a: f64, b: f64) -> Option<bool> {
         let hod = self.axis.hodograph();
         let q = Bernstein(hod.map(|h| h.dot(d))).restrict(a, b);
         let (lo, hi) = q.range();
         let floor = OBLIQUE * hod.iter().fold(0.0f64, |m, h| m.max(h.length())) * d.length();
-        lo >= floor || hi <= -floor
+        if lo >= floor {
+            Some(true)
+        } else if hi <= -floor {
+            Some(false)
+        } else {
+            None
+        }
     }
 
     /// Every side root for the local ray `o + w d` (see the module docs): in `out`, or for the
@@ -676,10 +688,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             let quad = branches::Quadric::new(self, o, d);
             for (a, b) in prefilter::candidate_ranges(self, o, d, oblique_core) {
                 let (a, b) = widen(a, b, lo, hi);
-                if self.oblique(d, a, b) {
+                if let Some(rising) = self.obliquity(d, a, b) {
                     // Away from perpendicular the roots of `g` are simple and well apart, and
                     // `w(u)` is well conditioned: the cheaper one-dimensional isolation.
-                    radial_cells.add(self, (o, d), (a, b), out);
+                    radial_cells.add(self, (o, d), (a, b), rising, out);
                     continue;
                 }
                 // The ellipsoid turns with the frame: no enclosure may span a switch of the

@@ -27,7 +27,9 @@ use glam::{DVec2, DVec3};
 use super::curve_curve::{Found, is_known};
 use crate::cylinder::GeneralizedCylinder;
 use crate::real::{Dual, Real, Taylor, V2};
-use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, first_cells, isolate_in_cells};
+use crate::roots::{
+    FirstRoot, Function1D, IsolateOptions, MAX_ROOTS, first_cells, isolate_in_cells,
+};
 use crate::section::{CrossSection, PieceImplicit};
 use crate::sweep::SweepRule;
 
@@ -195,7 +197,7 @@ pub(crate) fn piece_zeros<F: Function1D>(
     let mut ranges = 0;
     while let Some((x, y)) = todo.pop() {
         ranges += 1;
-        let first = first_cells(f, x, y, opts);
+        let first = first_cells(f, x, y, opts, FirstRoot::Both);
         let mut us: ArrayVec<f64, MAX_ROOTS> = ArrayVec::new();
         let found = isolate_in_cells(f, &first.cells, first.hints, opts, &mut us);
         let m = 0.5 * (x + y);
