@@ -866,7 +866,14 @@ impl Mul for Taylor {
     /// would scale past what the `1e-300` of each operation covers: each factor is taken plus
     /// the smallest normal `2^-1022` (absorbed, where a factor is larger than `2^-969`, by the
     /// bound's slack).
-    #[inline(always)]
+    ///
+    /// Not inlined, unlike the other operations: the enclosures of the radial function and of
+    /// the General method's `phi` each inlined well over a hundred products, and their code
+    /// (92 and 67 KB) outgrew the instruction cache. One shared copy (58 and 43 KB left)
+    /// executes 2-3% more instructions but made elliptical camera rays about 3% faster and
+    /// three-lobed ones 5% (whole-process timings; outlining sums, `compose` or the functions
+    /// built on it as well was slower).
+    #[inline(never)]
     fn mul(self, o: Self) -> Self {
         let h = fmax(self.h, o.h);
         let c0 = self.c * o.c;
