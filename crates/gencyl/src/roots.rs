@@ -209,7 +209,7 @@ impl PendingCut {
         let x = (self.x, self.fx);
         if self.upper {
             // `a` is the lower side's cut point `p`.
-            let ((q, fq), right) = cut_upper(&point, (b, fb), x, self.r);
+            let ((q, fq), right) = cut_side(&point, (b, fb), x, self.r);
             if a < q {
                 cells.push((a, q, fa, fq));
             }
@@ -217,7 +217,7 @@ impl PendingCut {
             guesses[1] = right.unwrap_or(self.r);
         } else {
             // `b` is the upper side's cut point `q`.
-            let ((p, fp), left) = cut_lower(&point, (a, fa), x, self.r);
+            let ((p, fp), left) = cut_side(&point, (a, fa), x, self.r);
             cells.push((a, p, fa, fp));
             if p < b {
                 cells.push((p, b, fp, fb));
@@ -319,7 +319,7 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
                 .find(|&g| g > a && g < b)
                 .unwrap_or(m - model.c / model.s);
             let slopes = Slopes::of(m, slope);
-            if let Some(r) = bracketed_root_from(&value, a, b, fa, fb, start, slopes) {
+            if let Some(r) = bracketed_root_from(&value, (a, b, fa, fb), start, slopes) {
                 room &= push_root(out, r);
             }
             continue;
@@ -504,8 +504,8 @@ fn u_shaped_cells(
     let pending = |upper: bool, r: f64| PendingCut { x, fx, r, upper };
     let (cells, guesses, pending) = match first {
         FirstRoot::Both => {
-            let ((p, fp), left) = cut_lower(point, (lo, flo), (x, fx), r1);
-            let ((q, fq), right) = cut_upper(point, (hi, fhi), (x, fx), r2);
+            let ((p, fp), left) = cut_side(point, (lo, flo), (x, fx), r1);
+            let ((q, fq), right) = cut_side(point, (hi, fhi), (x, fx), r2);
             cells.push((lo, p, flo, fp));
             if p < q {
                 cells.push((p, q, fp, fq));
@@ -514,7 +514,7 @@ fn u_shaped_cells(
             (cells, [left.unwrap_or(r1), right.unwrap_or(r2)], None)
         }
         FirstRoot::Low => {
-            let ((p, fp), left) = cut_lower(point, (lo, flo), (x, fx), r1);
+            let ((p, fp), left) = cut_side(point, (lo, flo), (x, fx), r1);
             cells.push((lo, p, flo, fp));
             cells.push((p, hi, fp, fhi));
             (
@@ -524,7 +524,7 @@ fn u_shaped_cells(
             )
         }
         FirstRoot::High => {
-            let ((q, fq), right) = cut_upper(point, (hi, fhi), (x, fx), r2);
+            let ((q, fq), right) = cut_side(point, (hi, fhi), (x, fx), r2);
             cells.push((lo, q, flo, fq));
             cells.push((q, hi, fq, fhi));
             (
@@ -544,42 +544,32 @@ fn u_shaped_cells(
     }
 }
 
-/// The lower side's cut of [`u_shaped_cells`]: at `y = (r + x) / 2` (`r` clamped to
-/// `[lo, x]`) where `f(y) < 0` and `y > lo`, else at `x`; and the estimate of the lower root
-/// from the parabola through `lo`, the cut and `x` (`local_zero`), where the cut is below `x`.
-fn cut_lower(
+/// One side's cut of [`u_shaped_cells`], the side of `end` (`lo` or `hi`): at
+/// `y = (r + x) / 2` (`r` clamped to between `x` and `end`) where `f(y) < 0` and `y` is not
+/// `end`, else at `x`; and the estimate of that side's root from the parabola through `end`,
+/// the cut and `x` (`local_zero`), where the cut is not `x`.
+fn cut_side(
     point: &impl Fn(f64) -> f64,
-    (lo, flo): (f64, f64),
+    (end, fend): (f64, f64),
     (x, fx): (f64, f64),
     r: f64,
 ) -> ((f64, f64), Option<f64>) {
-    let y = 0.5 * (r.clamp(lo, x) + x);
+    let lower = end < x;
+    let y = 0.5
+        * (if lower {
+            r.clamp(end, x)
+        } else {
+            r.clamp(x, end)
+        } + x);
     let fy = point(y);
-    let (p, fp) = if fy < 0.0 && lo < y { (y, fy) } else { (x, fx) };
-    let left = if p < x {
-        local_zero((lo, flo), (p, fp), (x, fx))
-    } else {
-        None
+    let inside = if lower { end < y } else { y < end };
+    let (c, fc) = if fy < 0.0 && inside { (y, fy) } else { (x, fx) };
+    let estimate = match (c == x, lower) {
+        (true, _) => None,
+        (false, true) => local_zero((end, fend), (c, fc), (x, fx)),
+        (false, false) => local_zero((c, fc), (end, fend), (x, fx)),
     };
-    ((p, fp), left)
-}
-
-/// The upper side's cut of [`u_shaped_cells`], as [`cut_lower`]'s mirror image.
-fn cut_upper(
-    point: &impl Fn(f64) -> f64,
-    (hi, fhi): (f64, f64),
-    (x, fx): (f64, f64),
-    r: f64,
-) -> ((f64, f64), Option<f64>) {
-    let y = 0.5 * (r.clamp(x, hi) + x);
-    let fy = point(y);
-    let (q, fq) = if fy < 0.0 && y < hi { (y, fy) } else { (x, fx) };
-    let right = if x < q {
-        local_zero((q, fq), (hi, fhi), (x, fx))
-    } else {
-        None
-    };
-    ((q, fq), right)
+    ((c, fc), estimate)
 }
 
 /// The zero in `(a, b)` of the parabola through `(a, fa)`, `(b, fb)` and `(c, fc)` (`c` outside
@@ -956,7 +946,7 @@ pub fn bracketed_root(
     fa: f64,
     fb: f64,
 ) -> Option<f64> {
-    converged_root_from(value, a, b, fa, fb, 0.5 * (a + b)).map(|(x, _)| x)
+    converged_root_from(value, (a, b, fa, fb), 0.5 * (a + b)).map(|(x, _)| x)
 }
 
 /// What is known of `f'` on a bracket: a first-order model
@@ -1005,14 +995,11 @@ impl Slopes {
 /// exact at the iterates (their rounding moves the answer by what it moves the sign changes).
 pub(crate) fn bracketed_root_from(
     value: &impl Fn(f64) -> (f64, f64),
-    a: f64,
-    b: f64,
-    fa: f64,
-    fb: f64,
+    (a, b, fa, fb): Cell,
     x0: f64,
     slopes: Slopes,
 ) -> Option<f64> {
-    newton_in_bracket(value, a, b, fa, fb, x0, Some(slopes)).map(|(x, _)| x)
+    newton_in_bracket(value, (a, b, fa, fb), x0, Some(slopes)).map(|(x, _)| x)
 }
 
 /// [`bracketed_root`] from `x0`, and whether the bracket closed to the resolution of `f64` (or
@@ -1020,13 +1007,10 @@ pub(crate) fn bracketed_root_from(
 /// (the one with the smaller residual) need not be near a root.
 pub(crate) fn converged_root_from(
     value: &impl Fn(f64) -> (f64, f64),
-    a: f64,
-    b: f64,
-    fa: f64,
-    fb: f64,
+    (a, b, fa, fb): Cell,
     x0: f64,
 ) -> Option<(f64, bool)> {
-    newton_in_bracket(value, a, b, fa, fb, x0, None)
+    newton_in_bracket(value, (a, b, fa, fb), x0, None)
 }
 
 /// Newton's method in the bracket, as [`bracketed_root_from`] and [`converged_root_from`] (one
@@ -1034,10 +1018,7 @@ pub(crate) fn converged_root_from(
 #[inline(always)]
 fn newton_in_bracket(
     value: &impl Fn(f64) -> (f64, f64),
-    a: f64,
-    b: f64,
-    fa: f64,
-    fb: f64,
+    (a, b, fa, fb): Cell,
     x0: f64,
     slopes: Option<Slopes>,
 ) -> Option<(f64, bool)> {
@@ -1146,16 +1127,14 @@ mod tests {
     fn bracketed_root_reports_convergence() {
         let f = |x: f64| x * x - 2.0;
         let (r, converged) =
-            converged_root_from(&|x: f64| (f(x), 2.0 * x), 0.0, 2.0, f(0.0), f(2.0), 1.0).unwrap();
+            converged_root_from(&|x: f64| (f(x), 2.0 * x), (0.0, 2.0, f(0.0), f(2.0)), 1.0)
+                .unwrap();
         assert!(converged, "a smooth root converges");
         assert!((r - 2f64.sqrt()).abs() <= 4.0 * f64::EPSILON, "root {r}");
         // An infinite slope: every Newton step is zero, so the iterate creeps by an ulp.
         let (r, converged) = converged_root_from(
             &|x: f64| (f(x), f64::INFINITY),
-            0.0,
-            2.0,
-            f(0.0),
-            f(2.0),
+            (0.0, 2.0, f(0.0), f(2.0)),
             1.0,
         )
         .unwrap();
@@ -1226,14 +1205,15 @@ mod tests {
                     (r.v, r.d)
                 };
                 let (fa, fb) = (f.eval(a), f.eval(b));
-                let r = bracketed_root_from(&value, a, b, fa, fb, start, slopes).unwrap();
+                let r = bracketed_root_from(&value, (a, b, fa, fb), start, slopes).unwrap();
                 let proven = calls.replace(0);
                 assert!(
                     (r - root).abs() <= tolerance,
                     "root {r} against {root} ({} ulps) on [{a}, {b}] from {start}",
                     (r - root) / ulp
                 );
-                let (closed, converged) = converged_root_from(&value, a, b, fa, fb, start).unwrap();
+                let (closed, converged) =
+                    converged_root_from(&value, (a, b, fa, fb), start).unwrap();
                 assert!(
                     converged && (closed - root).abs() <= tolerance,
                     "closed {closed}"

@@ -630,7 +630,7 @@ impl RootCell {
             self.start
         };
         let (r, converged) =
-            converged_root_from(&|s: f64| k.branch(s, sign), s0, s1, fa, fb, start)?;
+            converged_root_from(&|s: f64| k.branch(s, sign), (s0, s1, fa, fb), start)?;
         (converged && k.disc.eval(r) > k.err_disc || positive_disc(k, s0, s1)).then_some(r)
     }
 
