@@ -983,16 +983,18 @@ impl Slopes {
 /// the bracket about it. By the mean value theorem the root `r` has
 /// `|f(x)| = |f(x) - f(r)| >= min |x - r|`, so:
 /// - `|f(x)| <= min eps |x|` gives `|x - r| <= eps |x|`;
-/// - Newton's next iterate `y = x - f(x) / f'(x)` has `f(y) = f(x) - (x - y) f'(xi)` for a `xi`
-///   between them, so `|f(y)| = |x - y| |f'(x) - f'(xi)| <= |x - y| V` with
-///   `V = |f'(x) - (c + s (x - centre))| + |s| |x - y| + rho` from the model; where
-///   `|x - y| (V + eps |f'(x)|) <= min eps |y| / 2` (the second term covers the step's
+/// - Newton's next iterate `y = x - f(x) / g` (`g` the computed `f'(x)`, whatever its error)
+///   has `f(y) = f(x) - (x - y) f'(xi)` for a `xi` between them, so
+///   `|f(y)| = |x - y| |g - f'(xi)| <= |x - y| V` with
+///   `V = |g - (c + s (x - centre))| + |s| |x - y| + rho` from the model (`f'(xi)` is within
+///   `rho` of the model's line, whose rounding `rho` covers too); where
+///   `|x - y| (V + eps |g|) <= min eps |y| / 2` (the second term covers the step's
 ///   rounding), `y` rounded to `f64` is within `eps |y|` of `r`, and is returned without
 ///   evaluating `f` there.
 ///
 /// Near a simple root, Newton's iterates pass the second test one or two evaluations before
-/// the bracket would close. Like closing the bracket, both take the computed `f` and `f'` as
-/// exact at the iterates (their rounding moves the answer by what it moves the sign changes).
+/// the bracket would close. Like closing the bracket, both take the computed `f` as exact at
+/// the iterates (its rounding moves the answer by what it moves the sign changes).
 pub(crate) fn bracketed_root_from(
     value: &impl Fn(f64) -> (f64, f64),
     (a, b, fa, fb): Cell,
@@ -1247,6 +1249,47 @@ mod tests {
                 "{name}: {with} evaluations against {without}"
             );
         }
+    }
+
+    /// The slope model's remainder bounds how much `f'` may change within a Newton step:
+    /// `f(x) = x - k + sin(1e6 x) / 2e6` has the model `f' in 1 + [-1/2, 1/2]` over a cell
+    /// 2e-3 wide (constant centre and slope, the wiggle all in `rho`), and from a start at a
+    /// crest of the sine (`f' = 1` there, `f''` = 5e5) 1e-10 above the root, a stop that left
+    /// `rho` out would take the first Newton step as final, 11 `eps |r|` off (the review's
+    /// case). The root against plain bisection of `f`'s sign to adjacent floats.
+    #[test]
+    fn the_slope_remainder_bounds_the_step() {
+        struct Wiggly(f64);
+        impl Function1D for Wiggly {
+            fn eval<T: Real>(&self, x: T) -> T {
+                x - T::cst(self.0) + x.scale(1e6).sin().scale(0.5e-6)
+            }
+        }
+        let pi = std::f64::consts::PI;
+        let x0 = (0.5 * pi + (1e6 / pi).round() * pi) / 1e6;
+        let f = Wiggly(x0 + 0.5e-6 * (1e6 * x0).sin() - 1e-10);
+        let (a, b) = (x0 - 1e-3, x0 + 1e-3);
+        let (fa, fb) = (f.eval(a), f.eval(b));
+        let Dual { d: slope, .. } = f.eval(Dual::var(Taylor::var(a, b)));
+        let slopes = Slopes::of(0.5 * (a + b), slope);
+        assert!(slopes.min >= 0.49 && slope.rho >= 0.49, "{slopes:?}");
+        let value = |x: f64| {
+            let r = f.eval(Dual::var(x));
+            (r.v, r.d)
+        };
+        let r = bracketed_root_from(&value, (a, b, fa, fb), x0, slopes).unwrap();
+        // Bisection: `f(lo) < 0 < f(hi)`, to adjacent floats.
+        let (mut lo, mut hi) = (a, b);
+        while lo.next_up() < hi {
+            let m = 0.5 * (lo + hi);
+            if f.eval(m) < 0.0 { lo = m } else { hi = m }
+        }
+        let tolerance = f64::EPSILON * r.abs() + (hi - lo);
+        assert!(
+            (r - lo).abs() <= tolerance || (r - hi).abs() <= tolerance,
+            "root {r}, sign change in [{lo}, {hi}] ({} eps)",
+            (r - lo) / (f64::EPSILON * r)
+        );
     }
 
     struct Wiggle;
