@@ -870,7 +870,7 @@ impl Mul for Taylor {
     /// Not inlined, unlike the other operations: the enclosures of the radial function and of
     /// the General method's `phi` each inlined well over a hundred products, and their code
     /// (92 and 67 KB) outgrew the instruction cache. One shared copy (58 and 43 KB left)
-    /// executes 2-3% more instructions but made elliptical camera rays about 3% faster and
+    /// executes 2-3% more instructions but made elliptical camera rays 3-4% faster and
     /// three-lobed ones 5% (whole-process timings; outlining sums, `compose` or the functions
     /// built on it as well was slower).
     #[inline(never)]

@@ -1038,13 +1038,13 @@ fn newton_in_bracket(
     let mut x = if x0 > a && x0 < b { x0 } else { 0.5 * (a + b) };
     let mut last_width = b - a;
     let mut converged = false;
+    let min_slope = slopes.map_or(0.0, |s| s.min);
     for _ in 0..200 {
         let (fx, dfx) = value(x);
         if !fx.is_finite() {
             return None;
         }
         // An exact zero, or a root within `eps |x|` by the slope bound.
-        let min_slope = slopes.map_or(0.0, |s| s.min);
         if fx.abs() <= min_slope * (f64::EPSILON * x.abs()) {
             return Some((x, true));
         }

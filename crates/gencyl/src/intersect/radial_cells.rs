@@ -116,30 +116,22 @@ impl RadialCells {
         out: &mut SideRoots,
     ) {
         let (f, opts) = unit_radial(cyl, (o, d));
+        // Room for the most cells `first_cells` gives.
+        let room = self.cells.remaining_capacity() >= 3;
         // A lazy query wants the root nearer along the ray first: the lower end's where `w`
         // rises with `u` (`rising`: `a'.d > 0` on the oblique range; near the axis the ray's
         // point in the normal plane moves by `|a'|^2 / a'.d`). Guessing wrong costs the cut.
-        let first = match (self.lazy, rising) {
+        let first = match (self.lazy && room, rising) {
             (false, _) => FirstRoot::Both,
             (true, true) => FirstRoot::Low,
             (true, false) => FirstRoot::High,
         };
         let FirstCells {
-            mut cells,
-            mut hints,
-            mut pending,
+            cells,
+            hints,
+            pending,
         } = first_cells(&f, a, b, &opts, first);
-        let room = self.cells.remaining_capacity() >= cells.len();
         if !self.lazy || !room {
-            if let Some((i, cut)) = pending.take() {
-                // Cut at once, as the eager isolation does.
-                let (made, made_hints) = cut.make(&f, cells[i], hints);
-                let all: ArrayVec<Cell, 3> = (cells[..i].iter().copied())
-                    .chain(made)
-                    .chain(cells[i + 1..].iter().copied())
-                    .collect();
-                (cells, hints) = (all, made_hints);
-            }
             let mut us = ArrayVec::new();
             let found = isolate_in_cells(&f, &cells, hints, &opts, &mut us);
             if !found.overflow || !room {
