@@ -19,5 +19,5 @@ pub mod scene;
 pub mod shapes;
 
 pub use bvh::Bvh;
-pub use scene::{Scene, SceneHit, Scratch, sort_hits};
+pub use scene::{Leaving, Scene, SceneHit, Scratch, sort_hits};
 pub use shapes::{Plane, Sphere};

@@ -220,21 +220,25 @@ impl Scene {
     /// is false only entries count (`normal . d <= 0`,
     /// [`GeneralizedCylinder::intersect_first_entering_with`]): a renderer skips the exits of
     /// fibers it shades as far-field scatterers this way. `leaving`: the cylinder whose
-    /// surface the ray leaves, if any (the same answer, found faster).
+    /// surface the ray leaves and the point's `u`, if any (the same answer, found faster:
+    /// where only entries count on it, that fiber is mostly cleared at once,
+    /// [`GeneralizedCylinder::enters_nowhere_after`]).
     pub fn nearest_hit_where(
         &self,
         ray: &Ray,
         (tmin, tmax): (f64, f64),
-        leaving: Option<u32>,
+        leaving: Option<Leaving>,
         scratch: &mut Scratch,
         exits_stop: impl Fn(u32) -> bool,
     ) -> Option<SceneHit> {
         let mut best: Option<SceneHit> = None;
         let range = (tmin, tmax);
-        self.candidates(ray, range, leaving, &mut scratch.tested, |i, c, _| {
+        let left = leaving.map(|l| l.object);
+        self.candidates(ray, range, left, &mut scratch.tested, |i, c, _| {
             // The fiber the ray leaves, where only entries count: mostly shown to have none
-            // ahead at half the cost of the search.
-            if leaving == Some(i) && !exits_stop(i) && c.enters_nowhere_after(ray, tmin) {
+            // ahead at a small part of the search's cost.
+            if left == Some(i) && !exits_stop(i) && leaving.is_some_and(|l| l.clears(c, ray, tmin))
+            {
                 return best.map_or(tmax, |b| b.hit.t);
             }
             // Exclusive upper bound for the cylinder: up to and including the best t, for ties.
@@ -287,20 +291,22 @@ impl Scene {
     /// The cylinder left is tested last, only if the walk reaches it and nothing else blocks
     /// the ray: a shadow ray from a fiber is mostly blocked by others (two in three on the
     /// path-traced ponytail), and its own fiber's test, which mostly shows that the ray does
-    /// not enter it again, is then never made.
+    /// not enter it again, is then never made; where it is made, and only entries count on
+    /// it, it is mostly cleared at once ([`GeneralizedCylinder::enters_nowhere_after`]).
     pub fn any_hit_where(
         &self,
         ray: &Ray,
         (tmin, tmax): (f64, f64),
-        leaving: Option<u32>,
+        leaving: Option<Leaving>,
         scratch: &mut Scratch,
         exits_stop: impl Fn(u32) -> bool,
     ) -> bool {
+        let left = leaving.map(|l| l.object);
         let mut found = false;
         let mut reached_left = false;
         let range = (tmin, tmax);
-        self.candidates(ray, range, leaving, &mut scratch.tested, |i, c, tmax| {
-            if leaving == Some(i) {
+        self.candidates(ray, range, left, &mut scratch.tested, |i, c, tmax| {
+            if left == Some(i) {
                 reached_left = true;
                 return tmax;
             }
@@ -308,13 +314,31 @@ impl Scene {
             found |= c.any_hit(ray, tmin, tmax, !exits_stop(i));
             if found { f64::NEG_INFINITY } else { tmax }
         });
-        if let Some(i) = leaving.filter(|_| reached_left && !found) {
-            let c = self.cylinder(i);
-            let entering = !exits_stop(i);
-            found = !(entering && c.enters_nowhere_after(ray, tmin))
-                && c.any_hit(ray, tmin, tmax, entering);
+        if let Some(l) = leaving.filter(|_| reached_left && !found) {
+            let c = self.cylinder(l.object);
+            let entering = !exits_stop(l.object);
+            found = !(entering && l.clears(&c, ray, tmin)) && c.any_hit(ray, tmin, tmax, entering);
         }
         found
+    }
+}
+
+/// The fiber a spawned ray leaves ([`Scene::nearest_hit_where`], [`Scene::any_hit_where`]): its
+/// object number and the `u` of the point it leaves (any value is safe; the right one makes
+/// the query faster).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Leaving {
+    /// The cylinder's object number.
+    pub object: u32,
+    /// The axis parameter of the point left.
+    pub u: f64,
+}
+
+impl Leaving {
+    /// Whether the ray certainly enters `c`, the fiber it leaves, nowhere beyond `tmin`
+    /// ([`GeneralizedCylinder::enters_nowhere_after`], from the point left).
+    fn clears(&self, c: &GeneralizedCylinder, ray: &Ray, tmin: f64) -> bool {
+        c.enters_nowhere_after(ray, tmin, Some(self.u))
     }
 }
 
@@ -422,15 +446,18 @@ mod tests {
             let offset = rng.range(-1e-9, 1e-9) * 0.004 * (i % 3) as f64;
             let ray = Ray::new(c.surface_point(u, v) + across * offset, d.normalize());
             let range = (1e-9, f64::INFINITY);
+            // The point left named, or a wrong one (any is safe).
+            let named_u = if i % 5 == 0 { rng.range(0.0, 1.0) } else { u };
+            let left = Leaving { object, u: named_u };
             for far_field in [false, true] {
                 let exits_stop = |_: u32| !far_field;
-                let named = scene.nearest_hit_where(&ray, range, Some(object), &mut a, exits_stop);
+                let named = scene.nearest_hit_where(&ray, range, Some(left), &mut a, exits_stop);
                 let plain = scene.nearest_hit_where(&ray, range, None, &mut b, exits_stop);
                 assert_eq!(
                     named, plain,
                     "{ray:?} leaving {object}, far field {far_field}"
                 );
-                let named = scene.any_hit_where(&ray, range, Some(object), &mut a, exits_stop);
+                let named = scene.any_hit_where(&ray, range, Some(left), &mut a, exits_stop);
                 let plain = scene.any_hit_where(&ray, range, None, &mut b, exits_stop);
                 assert_eq!(
                     named, plain,
@@ -439,7 +466,7 @@ mod tests {
                 blocked += usize::from(plain);
                 // The whole line (`tmin = -inf`, which the box test once let into empty slots).
                 let line = (f64::NEG_INFINITY, f64::INFINITY);
-                let any = scene.any_hit_where(&ray, line, Some(object), &mut a, exits_stop);
+                let any = scene.any_hit_where(&ray, line, Some(left), &mut a, exits_stop);
                 let nearest = scene.nearest_hit_where(&ray, line, None, &mut b, exits_stop);
                 assert_eq!(
                     any,

@@ -5,7 +5,7 @@ use gencyl::{Aabb, Frame, GeneralizedCylinder, Part, Ray, Section};
 use glam::DVec3;
 
 use crate::accel::shapes::{Plane, Sphere};
-use crate::accel::{Scene, SceneHit, Scratch};
+use crate::accel::{Leaving, Scene, SceneHit, Scratch};
 use crate::optics::light::{Environment, Light};
 use crate::optics::material::{Material, SceneMaterial, SectionAt, ShadingPoint};
 use crate::scene_file::SceneDescription;
@@ -33,10 +33,10 @@ pub enum Surface {
     Light(u32),
 }
 
-/// The cylinder of a fiber surface.
-fn fiber(s: Option<Surface>) -> Option<u32> {
+/// The fiber a ray spawned on surface `s` leaves.
+fn fiber(s: Option<Surface>) -> Option<Leaving> {
     match s {
-        Some(Surface::Fiber { object, .. }) => Some(object),
+        Some(Surface::Fiber { object, u, .. }) => Some(Leaving { object, u }),
         _ => None,
     }
 }

@@ -775,7 +775,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     };
     let len = d.length();
     if entries_after
-        .is_some_and(|w_min| no_entry_after(&k, w_min * len, r[0].abs().max(r[1].abs())))
+        .is_some_and(|w_min| no_entry_after(&k, w_min * len, r[0].abs().max(r[1].abs()), None))
     {
         return;
     }
@@ -826,19 +826,22 @@ fn range_polys<C: CrossSection, S: SweepRule>(
 /// range `[u0, u1]`: [`no_entry_after`] on the whole range at once, without the prefilter's
 /// search for the ranges near the ray. For a ray that leaves the fiber's surface (a renderer's
 /// spawned ray) the range's only dip lies about the point it leaves, and [`entered_behind`]
-/// shows that entry behind it (in a test of rays from the ponytail's fibers, 99.9% of them,
-/// inward and outward alike: the witness is the point just behind the origin, inside the
-/// ball about the axis point it left). The caller makes sure the fiber is a tube (constant
-/// radius, no folding).
+/// shows that entry behind it, inward and outward rays alike; `near_u`, the `u` of the point
+/// left, is its first candidate witness (the ball about the axis there holds the ray's entry
+/// behind the origin). The caller makes sure the fiber is a tube (constant radius, no
+/// folding).
 pub(crate) fn range_enters_nowhere_after<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
     d: DVec3,
-    range: (f64, f64),
+    (u0, u1): (f64, f64),
     w_min: f64,
+    near_u: Option<f64>,
 ) -> bool {
-    range_polys(cyl, o, d, range)
-        .is_some_and(|(k, r)| no_entry_after(&k, w_min * d.length(), r[0].abs().max(r[1].abs())))
+    let near = near_u.map(|u| (u - u0) / (u1 - u0));
+    range_polys(cyl, o, d, (u0, u1)).is_some_and(|(k, r)| {
+        no_entry_after(&k, w_min * d.length(), r[0].abs().max(r[1].abs()), near)
+    })
 }
 
 /// Whether no crossing of the `-` branch (`z = Z - sqrt(D)`) lies beyond `z_min` on a tube
@@ -846,12 +849,12 @@ pub(crate) fn range_enters_nowhere_after<C: CrossSection, S: SweepRule>(
 /// -sqrt(D) |d| / r`): [`entered_behind`] (a ray that leaves a fiber's surface, into it or
 /// out of it: its point just behind the origin is inside a ball about the axis; tried first,
 /// as it costs one witness search where the other halves cells) or [`nothing_ahead`]. `r_max`
-/// is the radius.
-fn no_entry_after(k: &Polys, z_min: f64, r_max: f64) -> bool {
+/// is the radius; `near`, where known, a likely witness for [`entered_behind`].
+fn no_entry_after(k: &Polys, z_min: f64, r_max: f64, near: Option<f64>) -> bool {
     // `Z`'s rounding and a relative margin; where `D` may be at its rounding level, the margin
     // of [`RootCell::w_range`] for a crossing there.
     let relative = relative_margin(z_min, r_max) + SLACK * k.z.magnitude();
-    entered_behind(k, z_min - relative, r_max)
+    entered_behind(k, z_min - relative, r_max, near)
         || nothing_ahead(k, z_min - relative - k.tangent_margin())
 }
 
@@ -904,11 +907,12 @@ fn nothing_ahead(k: &Polys, z_below: f64) -> bool {
 ///   `a(s)` behind `z_below`): then the least `z_-` lies behind `z_below` too. It is sought where the
 ///   squared distance `E(s) = |a(s) - q|^2` from that point `q` is least, by Newton's method on
 ///   `E' / 2 = P + (Z - z) Z'` from the best of five samples (`E = r^2 - D + (Z - z)^2`), and
-///   taken with `D` and `Z` widened by their rounding bounds. (The entry itself may be nearly
+///   taken with `D` and `Z` widened by their rounding bounds; `near` (in `[0, 1]`), where the
+///   caller knows a likely witness, is tried first. (The entry itself may be nearly
 ///   tangent, `D` at its rounding level there: the polish of the full isolation could then
 ///   report it up to `sqrt(err_D)` late, past `tmin`, a hit that is not there. The witness
 ///   shows the exact entry behind `z_below`, which is the answer given.)
-fn entered_behind(k: &Polys, z_below: f64, r_max: f64) -> bool {
+fn entered_behind(k: &Polys, z_below: f64, r_max: f64, near: Option<f64>) -> bool {
     // Only a point within `r` of the axis along the ray can be inside a ball.
     let (z_lo, z_hi) = k.z.range();
     if z_below <= z_lo - r_max || z_below >= z_hi + r_max {
@@ -921,6 +925,14 @@ fn entered_behind(k: &Polys, z_below: f64, r_max: f64) -> bool {
     let changes = sign_changes(c);
     if !(changes <= 1 || (changes == 2 && c[0] < 0.0)) {
         return false;
+    }
+    // The ray's line enters the ball about `a(s)` behind `z_below`, by `D` and `Z` widened.
+    let witness = |s: f64| {
+        let disc = k.disc.eval(s) - 2.0 * k.err_disc;
+        disc > 0.0 && k.z.eval(s) - disc.sqrt() < z_below
+    };
+    if near.is_some_and(|s| (0.0..=1.0).contains(&s) && witness(s)) {
+        return true;
     }
     let excess = |s: f64| {
         let z = k.z.eval(s) - z_below;
@@ -942,8 +954,7 @@ fn entered_behind(k: &Polys, z_below: f64, r_max: f64) -> bool {
         }
         s = (s - slope / curve).clamp(0.0, 1.0);
     }
-    let disc = k.disc.eval(s) - 2.0 * k.err_disc;
-    disc > 0.0 && k.z.eval(s) - disc.sqrt() < z_below
+    witness(s)
 }
 
 /// Newton steps [`entered_behind`] takes toward its witness.
