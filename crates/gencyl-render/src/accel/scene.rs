@@ -149,7 +149,9 @@ impl Scene {
 
     /// Walks the BVH and hands each cylinder that may be hit within `(tmin, tmax)` to
     /// `exact(object, cylinder, tmax)` (at most once per query), which returns the new `tmax`
-    /// as [`Bvh::traverse`]'s closure does.
+    /// as [`Bvh::traverse`]'s closure does: nearer boxes first where `NEAREST_FIRST` (a
+    /// nearest-hit query, whose `tmax` shrinks with each hit), in the tree's order otherwise
+    /// ([`Bvh::traverse_prefetching_unordered`]: all hits, any hit).
     ///
     /// `leaving`: the cylinder the ray leaves, its origin on that cylinder's surface (a ray a
     /// renderer spawns from a hit). The cull cannot clear a piece the origin lies within reach
@@ -157,7 +159,7 @@ impl Scene {
     /// before saying so: that cylinder goes to the exact test without it. The answer is the same for
     /// any cylinder named (the cull only ever clears cylinders the exact test would find no
     /// hit on); naming the right one only makes it faster.
-    fn candidates(
+    fn candidates<const NEAREST_FIRST: bool>(
         &self,
         ray: &Ray,
         (tmin, tmax): (f64, f64),
@@ -184,24 +186,30 @@ impl Scene {
                 }
             }
         };
-        self.bvh
-            .traverse_prefetching(ray, tmin, tmax, cylinder, |key, tmax| {
-                let i = key >> PIECE_BITS;
-                if tested.contains(&i) {
+        let visit = |key: u32, tmax: f64| {
+            let i = key >> PIECE_BITS;
+            if tested.contains(&i) {
+                return tmax;
+            }
+            if leaving != Some(i) {
+                // The cull reads the stored axis; the cylinder is rebuilt only past it.
+                let (axis, reach) = self.cylinders.axis_and_reach(i as usize);
+                let space = space.get_or_insert_with(|| RaySpace::new(ray));
+                let piece = Piece(key & ((1 << PIECE_BITS) - 1));
+                if !space.may_hit_axis_piece(&axis, reach, piece, tmin, tmax) {
                     return tmax;
                 }
-                if leaving != Some(i) {
-                    // The cull reads the stored axis; the cylinder is rebuilt only past it.
-                    let (axis, reach) = self.cylinders.axis_and_reach(i as usize);
-                    let space = space.get_or_insert_with(|| RaySpace::new(ray));
-                    let piece = Piece(key & ((1 << PIECE_BITS) - 1));
-                    if !space.may_hit_axis_piece(&axis, reach, piece, tmin, tmax) {
-                        return tmax;
-                    }
-                }
-                tested.push(i);
-                exact(i, &self.cylinders.get(i as usize), tmax)
-            });
+            }
+            tested.push(i);
+            exact(i, &self.cylinders.get(i as usize), tmax)
+        };
+        if NEAREST_FIRST {
+            self.bvh
+                .traverse_prefetching(ray, tmin, tmax, cylinder, visit);
+        } else {
+            self.bvh
+                .traverse_prefetching_unordered(ray, tmin, tmax, cylinder, visit);
+        }
     }
 
     /// The nearest hit with `tmin < t < tmax`. Of hits at the same `t` the one of the lowest
@@ -234,7 +242,7 @@ impl Scene {
         let mut best: Option<SceneHit> = None;
         let range = (tmin, tmax);
         let left = leaving.map(|l| l.object);
-        self.candidates(ray, range, left, &mut scratch.tested, |i, c, _| {
+        self.candidates::<true>(ray, range, left, &mut scratch.tested, |i, c, _| {
             // The fiber the ray leaves, where only entries count: mostly shown to have none
             // ahead at a small part of the search's cost.
             if left == Some(i) && !exits_stop(i) && leaving.is_some_and(|l| l.clears(c, ray, tmin))
@@ -264,7 +272,7 @@ impl Scene {
     ) {
         let start = out.len();
         let hits = &mut scratch.hits;
-        self.candidates(
+        self.candidates::<false>(
             ray,
             (tmin, tmax),
             None,
@@ -305,7 +313,7 @@ impl Scene {
         let mut found = false;
         let mut reached_left = false;
         let range = (tmin, tmax);
-        self.candidates(ray, range, left, &mut scratch.tested, |i, c, tmax| {
+        self.candidates::<false>(ray, range, left, &mut scratch.tested, |i, c, tmax| {
             if left == Some(i) {
                 reached_left = true;
                 return tmax;

@@ -211,6 +211,34 @@ impl Bvh {
         prefetch_leaf: impl Fn(&[u32]),
         visit: impl FnMut(u32, f64) -> f64,
     ) {
+        self.traverse_in::<true>(ray, (tmin, tmax), prefetch_leaf, visit);
+    }
+
+    /// [`Self::traverse_prefetching`] without ordering the children a ray enters by distance
+    /// (each node's in slot order): the same primitives for a query that never lowers `tmax`
+    /// but to stop (all hits, any hit), without the sorting. On the path-traced ponytail the
+    /// shadow rays take about 4% fewer instructions so: the nearer-first order finds a blocker
+    /// sooner, but not by enough to pay for the sorting.
+    pub fn traverse_prefetching_unordered(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: f64,
+        prefetch_leaf: impl Fn(&[u32]),
+        visit: impl FnMut(u32, f64) -> f64,
+    ) {
+        self.traverse_in::<false>(ray, (tmin, tmax), prefetch_leaf, visit);
+    }
+
+    /// The traversal, nearer children first where `NEAREST_FIRST`.
+    #[inline]
+    fn traverse_in<const NEAREST_FIRST: bool>(
+        &self,
+        ray: &Ray,
+        (tmin, tmax): (f64, f64),
+        prefetch_leaf: impl Fn(&[u32]),
+        visit: impl FnMut(u32, f64) -> f64,
+    ) {
         // Also refuses NaN bounds.
         let Some(root) = self.root else {
             return;
@@ -229,25 +257,73 @@ impl Bvh {
             // The test of the ray's octant, whose near planes are known when compiled.
             let range = (tmin, tmax);
             match fast.octant() {
-                0 => self.walk_in(root, &Octant::<0>(&fast), range, prefetch_leaf, visit),
-                1 => self.walk_in(root, &Octant::<1>(&fast), range, prefetch_leaf, visit),
-                2 => self.walk_in(root, &Octant::<2>(&fast), range, prefetch_leaf, visit),
-                3 => self.walk_in(root, &Octant::<3>(&fast), range, prefetch_leaf, visit),
-                4 => self.walk_in(root, &Octant::<4>(&fast), range, prefetch_leaf, visit),
-                5 => self.walk_in(root, &Octant::<5>(&fast), range, prefetch_leaf, visit),
-                6 => self.walk_in(root, &Octant::<6>(&fast), range, prefetch_leaf, visit),
-                _ => self.walk_in(root, &Octant::<7>(&fast), range, prefetch_leaf, visit),
+                0 => self.walk_in::<_, NEAREST_FIRST>(
+                    root,
+                    &Octant::<0>(&fast),
+                    range,
+                    prefetch_leaf,
+                    visit,
+                ),
+                1 => self.walk_in::<_, NEAREST_FIRST>(
+                    root,
+                    &Octant::<1>(&fast),
+                    range,
+                    prefetch_leaf,
+                    visit,
+                ),
+                2 => self.walk_in::<_, NEAREST_FIRST>(
+                    root,
+                    &Octant::<2>(&fast),
+                    range,
+                    prefetch_leaf,
+                    visit,
+                ),
+                3 => self.walk_in::<_, NEAREST_FIRST>(
+                    root,
+                    &Octant::<3>(&fast),
+                    range,
+                    prefetch_leaf,
+                    visit,
+                ),
+                4 => self.walk_in::<_, NEAREST_FIRST>(
+                    root,
+                    &Octant::<4>(&fast),
+                    range,
+                    prefetch_leaf,
+                    visit,
+                ),
+                5 => self.walk_in::<_, NEAREST_FIRST>(
+                    root,
+                    &Octant::<5>(&fast),
+                    range,
+                    prefetch_leaf,
+                    visit,
+                ),
+                6 => self.walk_in::<_, NEAREST_FIRST>(
+                    root,
+                    &Octant::<6>(&fast),
+                    range,
+                    prefetch_leaf,
+                    visit,
+                ),
+                _ => self.walk_in::<_, NEAREST_FIRST>(
+                    root,
+                    &Octant::<7>(&fast),
+                    range,
+                    prefetch_leaf,
+                    visit,
+                ),
             }
         } else if let Some(fast) = Slabs32::<true>::new(&slab, tmin, &self.extent) {
-            self.walk(root, &fast, tmin, tmax, prefetch_leaf, visit);
+            self.walk::<_, NEAREST_FIRST>(root, &fast, tmin, tmax, prefetch_leaf, visit);
         } else {
-            self.walk(root, &slab, tmin, tmax, prefetch_leaf, visit);
+            self.walk::<_, NEAREST_FIRST>(root, &slab, tmin, tmax, prefetch_leaf, visit);
         }
     }
 
     /// [`Self::walk`] over the range `(tmin, tmax)`.
     #[inline]
-    fn walk_in<B: BoxTest>(
+    fn walk_in<B: BoxTest, const NEAREST_FIRST: bool>(
         &self,
         root: Child,
         slab: &B,
@@ -255,12 +331,13 @@ impl Bvh {
         prefetch_leaf: impl Fn(&[u32]),
         visit: impl FnMut(u32, f64) -> f64,
     ) {
-        self.walk(root, slab, tmin, tmax, prefetch_leaf, visit);
+        self.walk::<B, NEAREST_FIRST>(root, slab, tmin, tmax, prefetch_leaf, visit);
     }
 
-    /// The traversal proper, with the box test `slab`.
+    /// The traversal proper, with the box test `slab`; the children a ray enters nearest first
+    /// where `NEAREST_FIRST`, else in slot order.
     #[inline]
-    fn walk<B: BoxTest>(
+    fn walk<B: BoxTest, const NEAREST_FIRST: bool>(
         &self,
         root: Child,
         slab: &B,
@@ -305,9 +382,9 @@ impl Bvh {
                         cur = n.child[hit.trailing_zeros() as usize];
                         continue;
                     }
-                    // The entered children go on the stack, sorted so that the nearest is on
-                    // top (ties in slot order: pushed from the last slot, then a stable sort),
-                    // and the walk goes on with it.
+                    // The entered children go on the stack, sorted (where `NEAREST_FIRST`) so
+                    // that the nearest is on top (ties in slot order: pushed from the last slot,
+                    // then a stable sort), and the walk goes on with the top one.
                     let base = stack.len();
                     let mut h = hit;
                     while h != 0 {
@@ -315,15 +392,17 @@ impl Bvh {
                         h &= !(1 << i);
                         stack.push((n.child[i], entry[i]));
                     }
-                    let entered = &mut stack[base..];
-                    for a in 1..entered.len() {
-                        let x = entered[a];
-                        let mut j = a;
-                        while j > 0 && entered[j - 1].1 < x.1 {
-                            entered[j] = entered[j - 1];
-                            j -= 1;
+                    if NEAREST_FIRST {
+                        let entered = &mut stack[base..];
+                        for a in 1..entered.len() {
+                            let x = entered[a];
+                            let mut j = a;
+                            while j > 0 && entered[j - 1].1 < x.1 {
+                                entered[j] = entered[j - 1];
+                                j -= 1;
+                            }
+                            entered[j] = x;
                         }
-                        entered[j] = x;
                     }
                     cur = stack.pop().expect("two or more were pushed").0;
                     continue;
@@ -870,6 +949,67 @@ mod tests {
             t
         });
         out
+    }
+
+    /// `traverse_prefetching_unordered` visits the primitives `traverse` visits, each once,
+    /// where nothing cuts the range short (over `[0, inf)` and over windows of the ray), in
+    /// another order on some rays (it does not sort), names each leaf before visiting it, and
+    /// stops where `visit` returns `-inf`.
+    #[test]
+    fn unordered_traversal_visits_the_same_primitives() {
+        let mut rng = Rng::from_seed(9);
+        let boxes = scattered_boxes(&mut rng, 3000, 0.2);
+        let bvh = Bvh::build(&boxes);
+        let (mut reordered, mut visits) = (0, 0);
+        let all = |bvh: &Bvh, ray: &Ray, (tmin, tmax): (f64, f64), unordered: bool| {
+            let named = std::cell::RefCell::new(Vec::new());
+            let mut seen = vec![];
+            let name = |keys: &[u32]| named.borrow_mut().extend_from_slice(keys);
+            let visit = |p: u32, t: f64| {
+                assert!(named.borrow().contains(&p), "{p} visited before named");
+                seen.push(p);
+                t
+            };
+            if unordered {
+                bvh.traverse_prefetching_unordered(ray, tmin, tmax, name, visit);
+            } else {
+                bvh.traverse_prefetching(ray, tmin, tmax, name, visit);
+            }
+            seen
+        };
+        for _ in 0..3000 {
+            let ray = ray_toward_a_box(&mut rng, &boxes);
+            let t = rng.range(0.0, 2.0);
+            for range in [(0.0, f64::INFINITY), (t, t + rng.range(0.0, 1.0))] {
+                let plain = all(&bvh, &ray, range, false);
+                let seen = all(&bvh, &ray, range, true);
+                reordered += usize::from(seen != plain);
+                let (mut a, mut b) = (seen.clone(), plain.clone());
+                a.sort_unstable();
+                b.sort_unstable();
+                assert_eq!(a, b, "the same primitives");
+                a.dedup();
+                assert_eq!(a.len(), seen.len(), "each once");
+                visits += seen.len();
+                let mut count = 0;
+                bvh.traverse_prefetching_unordered(
+                    &ray,
+                    range.0,
+                    range.1,
+                    |_| {},
+                    |_, _| {
+                        count += 1;
+                        f64::NEG_INFINITY
+                    },
+                );
+                assert_eq!(count, usize::from(!plain.is_empty()), "stops at once");
+            }
+        }
+        assert!(visits > 3000, "the rays should visit leaves: {visits}");
+        assert!(
+            reordered > 100,
+            "rays visited in another order: {reordered}"
+        );
     }
 
     /// `traverse_prefetching` visits what `traverse` visits, in the same order, and before a
