@@ -300,7 +300,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// d <= 0`, there): then [`Self::intersect_first_entering_with`] finds none and
     /// [`Self::any_hit`] with `entering` answers `false`. `false` means only that it could not
     /// tell. For a ray that leaves the fiber's surface, as a renderer's spawned rays do, this
-    /// costs about 60% of the full test's search: on a tube (a round section of constant radius
+    /// costs about 40% of the full test's search (1,400 instructions against 3,400 on the
+    /// path-traced ponytail's spawned rays): on a tube (a round section of constant radius
     /// that does not fold) the side's entries are shown to lie behind `tmin` on the whole axis
     /// at once, by the witness of `round::entered_behind`, without the prefilter's search for
     /// the ranges near the ray; a closed cap crossed beyond `tmin` gives up. `near_u`, the `u`
