@@ -151,7 +151,7 @@ impl Scene {
     /// `exact(object, cylinder, tmax)` (at most once per query), which returns the new `tmax`
     /// as [`Bvh::traverse`]'s closure does: nearer boxes first where `NEAREST_FIRST` (a
     /// nearest-hit query, whose `tmax` shrinks with each hit), in the tree's order otherwise
-    /// ([`Bvh::traverse_prefetching_unordered`]: all hits, any hit).
+    /// ([`Bvh::traverse_prefetching_in`]: all hits, any hit).
     ///
     /// `leaving`: the cylinder the ray leaves, its origin on that cylinder's surface (a ray a
     /// renderer spawns from a hit). The cull cannot clear a piece the origin lies within reach
@@ -203,13 +203,8 @@ impl Scene {
             tested.push(i);
             exact(i, &self.cylinders.get(i as usize), tmax)
         };
-        if NEAREST_FIRST {
-            self.bvh
-                .traverse_prefetching(ray, tmin, tmax, cylinder, visit);
-        } else {
-            self.bvh
-                .traverse_prefetching_unordered(ray, tmin, tmax, cylinder, visit);
-        }
+        self.bvh
+            .traverse_prefetching_in::<NEAREST_FIRST>(ray, (tmin, tmax), cylinder, visit);
     }
 
     /// The nearest hit with `tmin < t < tmax`. Of hits at the same `t` the one of the lowest
