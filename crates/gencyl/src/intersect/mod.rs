@@ -306,8 +306,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// at once, by the witness of `round::entered_behind`, without the prefilter's search for
     /// the ranges near the ray; a closed cap crossed beyond `tmin` gives up. `near_u`, the `u`
     /// of the point the ray leaves where the caller knows it, is tried first as the witness
-    /// (any value is safe; a right one saves most of the search). Other fibers, and rays that
-    /// do not start near this one, get `false` at a similar cost.
+    /// (any value is safe; a right one saves most of the search). Fibers that are not tubes
+    /// get `false` at once; rays that do not start on the fiber are answered at a similar
+    /// cost, mostly with `false`.
     pub fn enters_nowhere_after(&self, ray: &Ray, tmin: f64, near_u: Option<f64>) -> bool {
         let d = ray.dir;
         if !(d.length_squared() > 0.0) || !d.is_finite() || !ray.origin.is_finite() {

@@ -825,7 +825,7 @@ fn range_radius<C: CrossSection, S: SweepRule>(
 /// search for the ranges near the ray. For a ray that leaves the fiber's surface (a renderer's
 /// spawned ray) the range's only dip lies about the point it leaves, and [`entered_behind`]
 /// shows that entry behind it, inward and outward rays alike; `near_u`, the `u` of the point
-/// left, is its first candidate witness (the ball about the axis there holds the ray's entry
+/// left, is its first candidate witness (the ray's line enters the ball about the axis there
 /// behind the origin). The caller makes sure the fiber is a tube (constant radius, no
 /// folding).
 pub(crate) fn range_enters_nowhere_after<C: CrossSection, S: SweepRule>(
@@ -847,8 +847,8 @@ pub(crate) fn range_enters_nowhere_after<C: CrossSection, S: SweepRule>(
 /// Whether no crossing of the `-` branch (`z = Z - sqrt(D)`) lies beyond `z_min` on a tube
 /// (constant radius, no folding), where the `-` branch holds every entry (`normal . d =
 /// -sqrt(D) |d| / r`): [`entered_behind`] (a ray that leaves a fiber's surface, into it or
-/// out of it: its point just behind the origin is inside a ball about the axis; tried first,
-/// as it costs one witness search where the other halves cells) or [`nothing_ahead`]. `r_max`
+/// out of it: its line enters a ball about the axis behind the origin; tried first, as it
+/// costs one witness search where the other halves cells) or [`nothing_ahead`]. `r_max`
 /// is the radius; `near`, where known, a likely witness for [`entered_behind`].
 fn no_entry_after(k: &Polys, z_min: f64, r_max: f64, near: Option<f64>) -> bool {
     // `Z`'s rounding and a relative margin; where `D` may be at its rounding level, the margin
@@ -905,7 +905,8 @@ fn nothing_ahead(k: &Polys, z_below: f64) -> bool {
 ///   `-` root, where it is least.
 /// - A witness `s` where `D > 0` and `z_-(s) < z_below` (the ray's line enters the ball about
 ///   `a(s)` behind `z_below`): then the least `z_-` lies behind `z_below` too. It is sought where the
-///   squared distance `E(s) = |a(s) - q|^2` from that point `q` is least, by Newton's method on
+///   squared distance `E(s) = |a(s) - q|^2` from the ray's point `q` at `z_below` is least
+///   (there, if anywhere, `q` lies inside a ball), by Newton's method on
 ///   `E' / 2 = P + (Z - z) Z'` from the best of five samples (`E = r^2 - D + (Z - z)^2`), and
 ///   taken with `D` and `Z` widened by their rounding bounds; `near` (in `[0, 1]`), where the
 ///   caller knows a likely witness, is tried first. (The entry itself may be nearly
