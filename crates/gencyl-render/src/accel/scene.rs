@@ -240,8 +240,7 @@ impl Scene {
         self.candidates::<true>(ray, range, left, &mut scratch.tested, |i, c, _| {
             // The fiber the ray leaves, where only entries count: mostly shown to have none
             // ahead at a small part of the search's cost.
-            if left == Some(i) && !exits_stop(i) && leaving.is_some_and(|l| l.clears(c, ray, tmin))
-            {
+            if leaving.is_some_and(|l| l.object == i && !exits_stop(i) && l.clears(c, ray, tmin)) {
                 return best.map_or(tmax, |b| b.hit.t);
             }
             // Exclusive upper bound for the cylinder: up to and including the best t, for ties.
