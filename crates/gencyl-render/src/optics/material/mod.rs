@@ -6,6 +6,7 @@
 //! fiber's normal plane), so `L_o = ∫ eval(wo, wi) L_i dω_i`; `sample` returns
 //! `eval / pdf`. Directions point away from the surface (`wo` toward the viewer).
 
+mod bessel;
 pub mod exact;
 pub mod hair;
 
