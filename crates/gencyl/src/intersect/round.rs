@@ -103,23 +103,53 @@ fn bounds<const K: usize>(b: &Bernstein<K>, err: f64) -> Interval {
     Interval::new(lo - err, hi + err)
 }
 
+/// The axis' control points `axis` in the frame of the ray `o + w d`, `[X, Y, Z]`: `Z` along
+/// the unit direction, `X` and `Y` across it, from `o`.
+#[inline]
+fn ray_coords(axis: [DVec3; 4], o: DVec3, d: DVec3) -> [Bernstein<4>; 3] {
+    let w = d.normalize();
+    let (e1, e2) = basis(w);
+    [e1, e2, w].map(|e| Bernstein(axis.map(|p| (p - o).dot(e))))
+}
+
+/// `D = r^2 - X^2 - Y^2` for the radius `r` (linear from `r[0]` to `r[1]`), and its rounding
+/// bound `SLACK (|X^2| + |Y^2| + |r^2|)` (each by its largest coefficient).
+#[inline]
+fn discriminant(x: &Bernstein<4>, y: &Bernstein<4>, r: [f64; 2]) -> (B7, f64) {
+    let rr = Bernstein([r[0], r[1]]);
+    let r2: B3 = rr.mul(&rr);
+    let (xx, yy): (B7, B7) = (x.mul(x), y.mul(y));
+    let disc = r2.elevate::<7>().sub(&xx).sub(&yy);
+    (
+        disc,
+        SLACK * (xx.magnitude() + yy.magnitude() + r2.magnitude()),
+    )
+}
+
+/// What the entry proofs ([`no_entry_after`]) read: `Z`, `D` and `D`'s rounding bound.
+#[derive(Clone, Copy)]
+struct Balls<'a> {
+    z: &'a Bernstein<4>,
+    disc: &'a B7,
+    err_disc: f64,
+}
+
+impl Balls<'_> {
+    /// How late rounding may put a crossing `z = Z ± sqrt(D)` where `D` is at its rounding
+    /// level (a nearly tangent one): `4 sqrt(err_D)`.
+    fn tangent_margin(&self) -> f64 {
+        4.0 * self.err_disc.sqrt()
+    }
+}
+
 impl Polys {
     fn new(axis: [DVec3; 4], r: [f64; 2], o: DVec3, d: DVec3) -> Self {
-        let w = d.normalize();
-        let (e1, e2) = basis(w);
-        let coords = |f: &dyn Fn(DVec3) -> f64| Bernstein(axis.map(|p| f(p - o)));
-        let x = coords(&|p| p.dot(e1));
-        let y = coords(&|p| p.dot(e2));
-        let z = coords(&|p| p.dot(w));
+        let [x, y, z] = ray_coords(axis, o, d);
         let (xs, ys, z_s): (B3, B3, B3) = (x.derivative(), y.derivative(), z.derivative());
-        let rr = Bernstein([r[0], r[1]]);
-        let r2: B3 = rr.mul(&rr);
-        let (xx, yy): (B7, B7) = (x.mul(&x), y.mul(&y));
-        let disc = r2.elevate::<7>().sub(&xx).sub(&yy);
+        let (disc, err_disc) = discriminant(&x, &y, r);
         let (px, py): (B6, B6) = (x.mul(&xs), y.mul(&ys));
         let p = px.add(&py);
         let scale = |m: f64| SLACK * m;
-        let err_disc = scale(xx.magnitude() + yy.magnitude() + r2.magnitude());
         let err_p = scale(px.magnitude() + py.magnitude());
         let err_z = scale(z_s.magnitude());
         let p_s: B5 = p.derivative();
@@ -142,10 +172,18 @@ impl Polys {
         }
     }
 
-    /// How late rounding may put a crossing `z = Z ± sqrt(D)` where `D` is at its rounding
-    /// level (a nearly tangent one): `4 sqrt(err_D)`.
+    /// `Z`, `D` and `D`'s rounding bound, for the entry proofs.
+    fn balls(&self) -> Balls<'_> {
+        Balls {
+            z: &self.z,
+            disc: &self.disc,
+            err_disc: self.err_disc,
+        }
+    }
+
+    /// [`Balls::tangent_margin`].
     fn tangent_margin(&self) -> f64 {
-        4.0 * self.err_disc.sqrt()
+        self.balls().tangent_margin()
     }
 
     /// `H` of branch `sign` at `s`, in `f64` (the same value [`Self::branch`] gives).
@@ -775,9 +813,9 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     };
     let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d);
     let len = d.length();
-    if entries_after
-        .is_some_and(|w_min| no_entry_after(&k, w_min * len, r[0].abs().max(r[1].abs()), None))
-    {
+    if entries_after.is_some_and(|w_min| {
+        no_entry_after(k.balls(), w_min * len, r[0].abs().max(r[1].abs()), None)
+    }) {
         return;
     }
     let mut cells = ArrayVec::new();
@@ -839,9 +877,16 @@ pub(crate) fn range_enters_nowhere_after<C: CrossSection, S: SweepRule>(
     let Some(r) = range_radius(cyl, (u0, u1)) else {
         return false;
     };
-    let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d);
+    // Only `Z` and `D`: the rest of the range's `Polys` would be half the work.
+    let [x, y, z] = ray_coords(cyl.axis.segment(u0, u1).points, o, d);
+    let (disc, err_disc) = discriminant(&x, &y, r);
+    let k = Balls {
+        z: &z,
+        disc: &disc,
+        err_disc,
+    };
     let near = near_u.map(|u| (u - u0) / (u1 - u0));
-    no_entry_after(&k, w_min * d.length(), r[0].abs().max(r[1].abs()), near)
+    no_entry_after(k, w_min * d.length(), r[0].abs().max(r[1].abs()), near)
 }
 
 /// Whether no crossing of the `-` branch (`z = Z - sqrt(D)`) lies beyond `z_min` on a tube
@@ -850,7 +895,7 @@ pub(crate) fn range_enters_nowhere_after<C: CrossSection, S: SweepRule>(
 /// out of it: its line enters a ball about the axis behind the origin; tried first, as it
 /// costs one witness search where the other halves cells) or [`nothing_ahead`]. `r_max`
 /// is the radius; `near`, where known, a likely witness for [`entered_behind`].
-fn no_entry_after(k: &Polys, z_min: f64, r_max: f64, near: Option<f64>) -> bool {
+fn no_entry_after(k: Balls, z_min: f64, r_max: f64, near: Option<f64>) -> bool {
     // `Z`'s rounding and a relative margin; where `D` may be at its rounding level, the margin
     // of [`RootCell::w_range`] for a crossing there.
     let relative = relative_margin(z_min, r_max) + SLACK * k.z.magnitude();
@@ -862,14 +907,14 @@ fn no_entry_after(k: &Polys, z_min: f64, r_max: f64, near: Option<f64>) -> bool 
 /// `Z - sqrt(D)` lies at or behind it: on Bernstein cells of `Z` and `D` (each cell's `Z`
 /// coefficients below `z_below`, or its `D` coefficients below zero beyond their rounding
 /// bound), halving at most [`CLEAR_BUDGET`] cells.
-fn nothing_ahead(k: &Polys, z_below: f64) -> bool {
+fn nothing_ahead(k: Balls, z_below: f64) -> bool {
     // All of the range ahead (a ray from afar): only a range without crossings would pass,
     // and the isolation clears those as fast.
     if k.z.range().0 >= z_below {
         return false;
     }
     let mut stack: ArrayVec<(Bernstein<4>, B7), 8> = ArrayVec::new();
-    stack.push((k.z, k.disc));
+    stack.push((*k.z, *k.disc));
     let mut cells = 0;
     while let Some((z, disc)) = stack.pop() {
         if z.range().1 < z_below || disc.range().1 < -k.err_disc {
@@ -913,7 +958,7 @@ fn nothing_ahead(k: &Polys, z_below: f64) -> bool {
 ///   tangent, `D` at its rounding level there: the polish of the full isolation could then
 ///   report it up to `sqrt(err_D)` late, past `tmin`, a hit that is not there. The witness
 ///   shows the exact entry behind `z_below`, which is the answer given.)
-fn entered_behind(k: &Polys, z_below: f64, r_max: f64, near: Option<f64>) -> bool {
+fn entered_behind(k: Balls, z_below: f64, r_max: f64, near: Option<f64>) -> bool {
     // Only a point within `r` of the axis along the ray can be inside a ball.
     let (z_lo, z_hi) = k.z.range();
     if z_below <= z_lo - r_max || z_below >= z_hi + r_max {
@@ -944,9 +989,13 @@ fn entered_behind(k: &Polys, z_below: f64, r_max: f64, near: Option<f64>) -> boo
         .map(|s| (excess(s), s))
         .fold((f64::INFINITY, 0.5), |a, b| if b.0 < a.0 { b } else { a })
         .1;
+    // On a tube `P = X X' + Y Y' = -D' / 2`.
+    let minus_2p: B6 = k.disc.derivative();
+    let z_s: B3 = k.z.derivative();
     for _ in 0..WITNESS_STEPS {
-        let (p, p_s) = k.p.eval_with_derivative(s);
-        let (z_s, z_ss) = k.z_s.eval_with_derivative(s);
+        let (minus_2p, minus_2p_s) = minus_2p.eval_with_derivative(s);
+        let (p, p_s) = (-0.5 * minus_2p, -0.5 * minus_2p_s);
+        let (z_s, z_ss) = z_s.eval_with_derivative(s);
         let z = k.z.eval(s) - z_below;
         let slope = p + z * z_s;
         let curve = p_s + z_s * z_s + z * z_ss;
