@@ -1177,9 +1177,10 @@ fn bench_rays(
         camera.unwrap_or_else(|| builtin::framed_camera(world.bounds(), width, height));
     camera.width = width;
     camera.height = height;
+    let rays = camera.rays();
     (0..height)
         .flat_map(|y| (0..width).map(move |x| (x, y)))
-        .map(|(x, y)| camera.ray(x as f64 + 0.5, y as f64 + 0.5))
+        .map(|(x, y)| rays.ray(x as f64 + 0.5, y as f64 + 0.5))
         .collect()
 }
 

@@ -130,7 +130,14 @@ fn xray_lengths_match_chords() {
         width: 1,
         height: 1,
     };
-    let (v, dropped) = integrator::pixel(&w, &cam, &settings(Integrator::Xray, 4), 0, 0, &mut buf);
+    let (v, dropped) = integrator::pixel(
+        &w,
+        &cam.rays(),
+        &settings(Integrator::Xray, 4),
+        0,
+        0,
+        &mut buf,
+    );
     assert_eq!(dropped, 0);
     assert!((v[4] - 2.0 * r).abs() < 1e-5, "pixel L = {}", v[4]);
     assert!(
@@ -359,6 +366,6 @@ fn non_finite_samples_are_dropped_and_counted() {
         "{}",
         r.non_finite_samples
     );
-    let (_, dropped) = integrator::pixel(&w, &cam, &s, 0, 0, &mut Buffers::default());
+    let (_, dropped) = integrator::pixel(&w, &cam.rays(), &s, 0, 0, &mut Buffers::default());
     assert_eq!(dropped, 3, "a corner pixel sees only sky");
 }

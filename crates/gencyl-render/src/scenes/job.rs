@@ -188,12 +188,13 @@ pub fn warnings(world: &World, camera: &Camera, name: &str) -> Vec<String> {
 /// Whether any ray of a 64x48 grid over the camera's image hits something.
 fn sees_geometry(world: &World, camera: &Camera) -> bool {
     let mut scratch = Default::default();
+    let rays = camera.rays();
     (0..48).any(|j| {
         (0..64).any(|i| {
             let x = (i as f64 + 0.5) / 64.0 * camera.width as f64;
             let y = (j as f64 + 0.5) / 48.0 * camera.height as f64;
             world
-                .intersect(&camera.ray(x, y), (0.0, f64::INFINITY), None, &mut scratch)
+                .intersect(&rays.ray(x, y), (0.0, f64::INFINITY), None, &mut scratch)
                 .is_some()
         })
     })

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 
 use crate::accel::{SceneHit, Scratch};
 use crate::formats::film::{Film, Window};
-use crate::optics::camera::Camera;
+use crate::optics::camera::{Camera, CameraRays};
 use crate::optics::light::Light;
 use crate::optics::material::{Bsdf, Material};
 use crate::sampling::{SampleRng, power_heuristic};
@@ -273,6 +273,7 @@ pub fn render(
     let channels = settings.integrator.channels();
     let nc = channels.len();
     let mut film = Film::new((camera.width, camera.height), window, channels);
+    let rays = camera.rays();
     let row_len = window.width() as usize * nc;
     let done = AtomicU64::new(0);
     let dropped = AtomicU64::new(0);
@@ -285,7 +286,7 @@ pub fn render(
             let mut row_dropped = 0;
             for (i, px) in row.chunks_mut(nc).enumerate() {
                 let x = window.x0 + i as u32;
-                let (v, d) = pixel(world, camera, settings, x, y, buf);
+                let (v, d) = pixel(world, &rays, settings, x, y, buf);
                 row_dropped += d as u64;
                 for (dst, src) in px.iter_mut().zip(v) {
                     *dst = src as f32;
@@ -307,7 +308,7 @@ pub fn render(
 /// every sample was dropped is 0.
 pub fn pixel(
     world: &World,
-    camera: &Camera,
+    camera: &CameraRays,
     settings: &RenderSettings,
     x: u32,
     y: u32,
@@ -319,7 +320,7 @@ pub fn pixel(
     for s in 0..settings.spp {
         let mut rng = SampleRng::new(x, y, s, settings.seed);
         let ray = camera.ray(x as f64 + rng.uniform(), y as f64 + rng.uniform());
-        let v = sample_ray(world, camera, settings, &ray, &mut rng, buf);
+        let v = sample_ray(world, camera.camera(), settings, &ray, &mut rng, buf);
         // The fifth value is the hit's distance (infinite where the sample saw nothing: a
         // value, not an overflow) except for X-ray, where it is a path length.
         let z_ok = if settings.integrator == Integrator::Xray {
