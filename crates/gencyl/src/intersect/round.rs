@@ -989,12 +989,11 @@ fn entered_behind(k: Balls, z_below: f64, r_max: f64, near: Option<f64>) -> bool
         .map(|s| (excess(s), s))
         .fold((f64::INFINITY, 0.5), |a, b| if b.0 < a.0 { b } else { a })
         .1;
-    // On a tube `P = X X' + Y Y' = -D' / 2`.
-    let minus_2p: B6 = k.disc.derivative();
-    let z_s: B3 = k.z.derivative();
+    // `D'` and `Z'`; on a tube `P = X X' + Y Y' = -D' / 2`.
+    let (disc_s, z_s): (B6, B3) = (k.disc.derivative(), k.z.derivative());
     for _ in 0..WITNESS_STEPS {
-        let (minus_2p, minus_2p_s) = minus_2p.eval_with_derivative(s);
-        let (p, p_s) = (-0.5 * minus_2p, -0.5 * minus_2p_s);
+        let (d_s, d_ss) = disc_s.eval_with_derivative(s);
+        let (p, p_s) = (-0.5 * d_s, -0.5 * d_ss);
         let (z_s, z_ss) = z_s.eval_with_derivative(s);
         let z = k.z.eval(s) - z_below;
         let slope = p + z * z_s;

@@ -3,7 +3,7 @@
 //!
 //! [`log_i0`] reads piecewise Chebyshev fits, made once from [`log_i0_series`] (the slow
 //! reference: tens of terms and a logarithm a call) when first asked for:
-//! - `x < 12`: 24 cells of width 1/2 in `x`, fitting `ln I0(x) − x` (between `−2.3` and `0`);
+//! - `x < 12`: 24 cells of width 1/2 in `x`, fitting `ln I0(x) − x` (between `−2.2` and `0`);
 //! - `x >= 12`: 4 cells in `u = 12 / x ∈ (0, 1]`, fitting the asymptotic remainder
 //!   `ln I0(x) − x + ln(2πx) / 2` (between `0` and `0.011`), smooth in `u` down to `u = 0`.
 //!
