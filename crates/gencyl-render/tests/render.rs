@@ -219,6 +219,42 @@ fn white_furnaces_are_white() {
     }
 }
 
+/// A fiber under a directional light is dark exactly where a black plane blocks the light and
+/// lit where nothing does, for a BSDF evaluated after the shadow ray (hair's) and one
+/// evaluated before it (diffuse), by both integrators.
+#[test]
+fn blocked_light_leaves_fibers_dark() {
+    for m in [
+        "type = \"hair\"\nsigma_a = 0.2",
+        "type = \"diffuse\"\nalbedo = 0.8",
+    ] {
+        for blocked in [false, true] {
+            let plane = if blocked {
+                "[[plane]]\npoint = [0, 1, 0]\nnormal = [0, 1, 0]\nmaterial = \"black\"\n"
+            } else {
+                ""
+            };
+            let src = format!(
+                "[[cylinder]]\nbezier = [[-2, 0, 0], [-1, 0, 0], [1, 0, 0], [2, 0, 0]]\nmajor_radius = [0.2, 0.2]\nmaterial = \"m\"\n\
+                 {plane}\
+                 [material.m]\n{m}\n[material.black]\ntype = \"diffuse\"\nalbedo = 0\n\
+                 [[light]]\ntype = \"directional\"\ndirection = [0.3, -1, -0.2]\nirradiance = 2\n\
+                 [camera]\nposition = [0, 0.5, 5]\nlook_at = [0, 0, 0]\n"
+            );
+            let (w, cam) = world(&src);
+            let ray = Ray::new(DVec3::new(0.0, 0.5, 5.0), DVec3::new(0.0, -0.4, -5.0));
+            for integ in [Integrator::Direct, Integrator::Path] {
+                let (mean, _) = mean_radiance(&w, &cam, &settings(integ, 1), ray, 500);
+                if blocked {
+                    assert_eq!(mean, 0.0, "{m:?} {integ:?}: light through the plane");
+                } else {
+                    assert!(mean > 1e-2, "{m:?} {integ:?}: unlit, {mean}");
+                }
+            }
+        }
+    }
+}
+
 /// Beer-Lambert through a dielectric fiber, along the ray through its axis at normal
 /// incidence (the path stays on that line): with Fresnel reflectance `F` and `a = sigma_a 2r`,
 /// the radiance from a furnace of 1 is `F + (1 - F)^2 e^-a / (1 - F e^-a)`; index-matched

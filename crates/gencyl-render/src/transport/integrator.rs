@@ -230,8 +230,7 @@ fn next_event(
     let Some(ls) = ls else {
         return DVec3::ZERO;
     };
-    let (f, bsdf_pdf) = bsdf.eval_pdf(wo, ls.wi);
-    if f == DVec3::ZERO || ls.value == DVec3::ZERO {
+    if ls.value == DVec3::ZERO {
         return DVec3::ZERO;
     }
     let shadow = spawn(h.point, h.normal, ls.wi);
@@ -240,7 +239,16 @@ fn next_event(
     } else {
         f64::INFINITY
     };
-    if world.occluded(&shadow, (0.0, reach), Some(h.surface), &mut buf.scratch) {
+    let mut occluded = || world.occluded(&shadow, (0.0, reach), Some(h.surface), &mut buf.scratch);
+    // The same value either way; only the cost differs. A costly BSDF (hair's, where most
+    // shadow rays from within the fibers are blocked) is evaluated only where the light is
+    // seen; a cheap one first, so that its zero (a light behind a surface) spares the ray.
+    let costly = bsdf.eval_is_costly();
+    if costly && occluded() {
+        return DVec3::ZERO;
+    }
+    let (f, bsdf_pdf) = bsdf.eval_pdf(wo, ls.wi);
+    if f == DVec3::ZERO || !costly && occluded() {
         return DVec3::ZERO;
     }
     let w = if ls.pdf.is_infinite() {

@@ -346,6 +346,13 @@ impl<'a> Bsdf<'a> {
         matches!(self, Bsdf::Dielectric { .. })
     }
 
+    /// Whether [`Self::eval_pdf`] costs about as much as a shadow ray (the hair models: their
+    /// lobes, Bessel terms and azimuths), so that a renderer tests the light's visibility
+    /// before evaluating.
+    pub fn eval_is_costly(&self) -> bool {
+        matches!(self, Bsdf::Hair { .. })
+    }
+
     fn to_local(frame: &[DVec3; 3], w: DVec3) -> DVec3 {
         DVec3::new(w.dot(frame[0]), w.dot(frame[1]), w.dot(frame[2]))
     }
