@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use gencyl_render::accel::{Scene, Scratch};
+use gencyl_render::accel::{COUNTING, QueryCounts, Scene, Scratch};
 use gencyl_render::formats::plot;
 use gencyl_render::formats::{Film, Window, hair};
 use gencyl_render::limits;
@@ -218,6 +218,11 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
+    /// Also print what the rays did: queries by kind and how many hit, and per ray the BVH
+    /// nodes walked, cylinder pieces reached, culls (and how many cleared their cylinder)
+    /// and exact tests (counted in a build with `--features stats`).
+    #[arg(long)]
+    stats: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -620,8 +625,57 @@ fn render_command(args: RenderArgs) -> Result<()> {
             (t2 - t1).as_secs_f64(),
             (t3 - t2).as_secs_f64()
         );
+        if args.stats {
+            eprint!("{}", query_report(&rendered.counts));
+        }
         Ok(())
     })
+}
+
+/// `--stats`' report of what a run's ray queries did: two lines, as `render --stats` prints
+/// them; one saying how to get them from a build without the counting.
+fn query_report(c: &QueryCounts) -> String {
+    if !COUNTING {
+        return "queries: not counted in this build (cargo build --release --features stats)\n"
+            .to_string();
+    }
+    counts_report(c)
+}
+
+/// The two lines of [`query_report`] for counts made.
+fn counts_report(c: &QueryCounts) -> String {
+    let share = |a: u64, b: u64| 100.0 * a as f64 / b.max(1) as f64;
+    let per_ray = |x: u64| x as f64 / c.queries().max(1) as f64;
+    let kinds = [
+        (
+            c.nearest,
+            format!("nearest-hit ({:.1}% hit)", share(c.nearest_hits, c.nearest)),
+        ),
+        (
+            c.any,
+            format!("any-hit ({:.1}% blocked)", share(c.any_hits, c.any)),
+        ),
+        (c.all, "all-hits".to_string()),
+    ];
+    let kinds: Vec<String> = kinds
+        .into_iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+    format!(
+        "queries: {}\nper query: {:.2} BVH nodes, {:.2} cylinder pieces reached, {:.2} culls ({:.1}% cleared), {:.3} exact tests, {:.3} on the fiber the ray leaves\n",
+        if kinds.is_empty() {
+            "none".to_string()
+        } else {
+            kinds.join(", ")
+        },
+        per_ray(c.nodes),
+        per_ray(c.pieces),
+        per_ray(c.culls),
+        share(c.cleared, c.culls),
+        per_ray(c.exact),
+        per_ray(c.exact_leaving)
+    )
 }
 
 fn ct_command(args: CtArgs) -> Result<()> {
@@ -1526,7 +1580,44 @@ fn raycast_command(args: RaycastArgs) -> Result<()> {
                 stats.rows,
                 ms(t3, t4) - stats.intersect_time.as_secs_f64() * 1e3,
             )?;
+            write!(e, "{}", query_report(&stats.counts))?;
         }
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The report names the kinds of queries made, with their hit shares, and gives the per
+    /// query figures as counts over queries.
+    #[test]
+    fn counts_report_divides_by_the_queries() {
+        let c = QueryCounts {
+            nearest: 300,
+            nearest_hits: 75,
+            any: 100,
+            any_hits: 66,
+            nodes: 4000,
+            pieces: 1000,
+            culls: 800,
+            cleared: 600,
+            exact: 200,
+            exact_leaving: 100,
+            ..QueryCounts::default()
+        };
+        assert_eq!(
+            counts_report(&c),
+            "queries: 300 nearest-hit (25.0% hit), 100 any-hit (66.0% blocked)\n\
+             per query: 10.00 BVH nodes, 2.50 cylinder pieces reached, 2.00 culls (75.0% cleared), \
+             0.500 exact tests, 0.250 on the fiber the ray leaves\n"
+        );
+        let all = QueryCounts {
+            all: 4,
+            ..QueryCounts::default()
+        };
+        assert!(counts_report(&all).starts_with("queries: 4 all-hits\n"));
+        assert!(counts_report(&QueryCounts::default()).starts_with("queries: none\n"));
+    }
 }

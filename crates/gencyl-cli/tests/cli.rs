@@ -126,6 +126,64 @@ fn straight_cylinder_matches_expected() {
     }
 }
 
+/// `raycast --stats` reports the queries: one a ray, and the share that hit is the rows'
+/// (one row a hit); `render --stats` reports its rays too. A build without the counting
+/// (`--features stats`) says how to get them.
+#[test]
+fn stats_report_the_queries() {
+    let counted = cfg!(feature = "stats");
+    let not_counted = "queries: not counted in this build (cargo build --release --features stats)";
+    let (scene, rays) = straight();
+    let out = gencyl(&["raycast", "--stats", path(&scene), path(&rays)], None);
+    assert!(out.status.success());
+    let hits = String::from_utf8(out.stdout).unwrap().lines().count() - 1;
+    let err = String::from_utf8(out.stderr).unwrap();
+    let rays = 5;
+    let want = if counted {
+        format!(
+            "queries: {rays} nearest-hit ({:.1}% hit)",
+            100.0 * hits as f64 / rays as f64
+        )
+    } else {
+        not_counted.to_string()
+    };
+    assert!(err.lines().any(|l| l == want), "{want:?} in\n{err}");
+    assert_eq!(err.contains("per query: "), counted, "{err}");
+    let image = std::env::temp_dir().join(format!("gencyl-stats-{}.png", std::process::id()));
+    let out = gencyl(
+        &[
+            "render",
+            "--stats",
+            "-q",
+            "--width",
+            "24",
+            "--spp",
+            "1",
+            "-o",
+            path(&image),
+        ],
+        None,
+    );
+    let _ = std::fs::remove_file(&image);
+    assert!(out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    let queries = err
+        .lines()
+        .find_map(|l| l.strip_prefix("queries: "))
+        .unwrap_or_else(|| panic!("no queries line in\n{err}"));
+    if counted {
+        let camera_rays = 24 * 18;
+        let nearest: u64 = queries.split(' ').next().unwrap().parse().unwrap();
+        assert!(
+            nearest >= camera_rays,
+            "{queries}: a nearest-hit query a camera ray at least"
+        );
+        assert!(queries.contains("any-hit"), "shadow rays: {queries}");
+    } else {
+        assert_eq!(format!("queries: {queries}"), not_counted);
+    }
+}
+
 #[test]
 fn all_gives_entry_and_exit_sorted_by_t() {
     let (scene, rays) = straight();

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use gencyl::Ray;
 use rayon::prelude::*;
 
-use crate::accel::{Scene, SceneHit, Scratch};
+use crate::accel::{QueryCounts, Scene, SceneHit, Scratch};
 pub use crate::formats::rays::{
     HEADER, Num, RayFileError, check_ray, format_row, parse_rays, part_number, rays_from_arrays,
     read_rays,
@@ -32,6 +32,8 @@ pub struct RaycastStats {
     pub rows: usize,
     /// Time spent intersecting, not writing.
     pub intersect_time: Duration,
+    /// What the ray queries did.
+    pub counts: QueryCounts,
 }
 
 impl RaycastStats {
@@ -70,7 +72,8 @@ pub fn raycast(
     let size = if opts.all { ALL_BLOCK } else { BLOCK };
     for (b, block) in rays.chunks(size).enumerate() {
         let start = Instant::now();
-        let rows = cast_rays(scene, block, b * size, tmin, opts.all);
+        let (rows, counts) = cast_rays_counted(scene, block, b * size, tmin, opts.all);
+        stats.counts += counts;
         stats.intersect_time += start.elapsed();
         // The rows' text in parallel too (shortest round-trip digits cost about as much as a
         // camera ray's intersection), written in order.
@@ -109,11 +112,22 @@ pub fn cast_rays(
     tmin: f64,
     all: bool,
 ) -> Vec<(u32, SceneHit)> {
+    cast_rays_counted(scene, rays, first, tmin, all).0
+}
+
+/// [`cast_rays`], and what its queries did.
+pub fn cast_rays_counted(
+    scene: &Scene,
+    rays: &[Ray],
+    first: usize,
+    tmin: f64,
+    all: bool,
+) -> (Vec<(u32, SceneHit)>, QueryCounts) {
     assert!(
         u32::try_from(first + rays.len()).is_ok(),
         "ray numbers fit in u32"
     );
-    let rows: Vec<Vec<(u32, SceneHit)>> = rays
+    let rows: Vec<(Vec<(u32, SceneHit)>, QueryCounts)> = rays
         .par_chunks(CHUNK)
         .enumerate()
         // Every chunk its own task: rayon's adaptive splitting otherwise leaves a quarter of
@@ -129,10 +143,16 @@ pub fn cast_rays(
                 cast(scene, ray, tmin, all, &mut hits, &mut scratch);
                 rows.extend(hits.iter().map(|&h| ((first + i) as u32, h)));
             }
-            rows
+            (rows, scratch.counts())
         })
         .collect();
-    rows.concat()
+    let mut counts = QueryCounts::default();
+    let mut all_rows = Vec::with_capacity(rows.iter().map(|(r, _)| r.len()).sum());
+    for (r, c) in rows {
+        counts += c;
+        all_rows.extend(r);
+    }
+    (all_rows, counts)
 }
 
 /// A ray whose direction is far from unit size is cast with the direction scaled by a power

@@ -5,6 +5,7 @@ use std::borrow::Cow;
 use gencyl::{GeneralizedCylinder, Hit, Method, PackedCylinders, Ray, Section, StrandControls};
 use rayon::prelude::*;
 
+use crate::accel::COUNTING;
 use crate::accel::bvh::Bvh;
 use crate::accel::cull::{Piece, RaySpace, level_for, pieces_bounds_under};
 use crate::accel::prefetch::prefetch_bytes;
@@ -32,12 +33,90 @@ pub struct Scene {
     bvh: Bvh,
 }
 
-/// Buffers a query reuses: one per thread.
+/// Buffers a query reuses: one per thread. It also counts what the queries made with it did
+/// ([`Scratch::counts`], where counting is built in).
 #[derive(Clone, Debug, Default)]
 pub struct Scratch {
     hits: Vec<Hit>,
     /// Cylinders already given to the exact solver in this query.
     tested: Vec<u32>,
+    counts: QueryCounts,
+}
+
+impl Scratch {
+    /// What the queries made with this scratch did so far.
+    pub fn counts(&self) -> QueryCounts {
+        self.counts
+    }
+
+    /// [`Self::counts`], starting the count again from zero.
+    pub fn take_counts(&mut self) -> QueryCounts {
+        std::mem::take(&mut self.counts)
+    }
+}
+
+/// What a scene's queries did, step by step (as pbrt's statistics count them): how much of
+/// the BVH the rays walked, how many cylinders the cull cleared and how many went to the exact
+/// test. Counted per thread in its [`Scratch`] as the queries run, where counting is built in
+/// ([`COUNTING`]; all zero otherwise); sums of several threads' by `+=`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct QueryCounts {
+    /// Nearest-hit queries (a renderer's camera and bounce rays) and how many found a hit.
+    pub nearest: u64,
+    /// See [`Self::nearest`].
+    pub nearest_hits: u64,
+    /// Any-hit queries (shadow rays) and how many found one (a blocker).
+    pub any: u64,
+    /// See [`Self::any`].
+    pub any_hits: u64,
+    /// All-hits queries.
+    pub all: u64,
+    /// BVH nodes whose children's boxes a ray was tested against.
+    pub nodes: u64,
+    /// Cylinder pieces in the leaves the rays reached.
+    pub pieces: u64,
+    /// Culls: pieces of cylinders not yet tested in the query (other than the one the ray
+    /// leaves), and of those, how many the cull cleared.
+    pub culls: u64,
+    /// See [`Self::culls`].
+    pub cleared: u64,
+    /// Exact tests on the cylinders the cull let through (`culls - cleared`).
+    pub exact: u64,
+    /// The cylinder a spawned ray leaves, reached by the walk: given to the exact test (or
+    /// its cheaper clearing test) without the cull; an any-hit query tests it last, only if
+    /// nothing else blocks the ray.
+    pub exact_leaving: u64,
+}
+
+/// `n += 1` where counting is built in ([`COUNTING`]); nothing otherwise.
+#[inline(always)]
+fn tally(n: &mut u64) {
+    if COUNTING {
+        *n += 1;
+    }
+}
+
+impl QueryCounts {
+    /// Queries of every kind.
+    pub fn queries(&self) -> u64 {
+        self.nearest + self.any + self.all
+    }
+}
+
+impl std::ops::AddAssign for QueryCounts {
+    fn add_assign(&mut self, o: QueryCounts) {
+        self.nearest += o.nearest;
+        self.nearest_hits += o.nearest_hits;
+        self.any += o.any;
+        self.any_hits += o.any_hits;
+        self.all += o.all;
+        self.nodes += o.nodes;
+        self.pieces += o.pieces;
+        self.culls += o.culls;
+        self.cleared += o.cleared;
+        self.exact += o.exact;
+        self.exact_leaving += o.exact_leaving;
+    }
 }
 
 /// BVH keys: cylinder number in the high bits, the piece's heap index (< 16) in the low 4.
@@ -164,10 +243,12 @@ impl Scene {
         ray: &Ray,
         (tmin, tmax): (f64, f64),
         leaving: Option<u32>,
-        tested: &mut Vec<u32>,
+        (tested, counts): (&mut Vec<u32>, &mut QueryCounts),
         mut exact: impl FnMut(u32, &GeneralizedCylinder, f64) -> f64,
     ) {
         tested.clear();
+        // Counted here, added to `counts` once the walk is done.
+        let (mut pieces, mut culls, mut cleared, mut tests, mut exact_leaving) = (0, 0, 0, 0, 0);
         // Made when the first leaf is reached (most rays miss the model).
         let mut space: Option<RaySpace> = None;
         // Every cylinder of a leaf (of several pieces, each of another cylinder, mostly).
@@ -187,24 +268,39 @@ impl Scene {
             }
         };
         let visit = |key: u32, tmax: f64| {
+            tally(&mut pieces);
             let i = key >> PIECE_BITS;
             if tested.contains(&i) {
                 return tmax;
             }
             if leaving != Some(i) {
+                tally(&mut culls);
                 // The cull reads the stored axis; the cylinder is rebuilt only past it.
                 let (axis, reach) = self.cylinders.axis_and_reach(i as usize);
                 let space = space.get_or_insert_with(|| RaySpace::new(ray));
                 let piece = Piece(key & ((1 << PIECE_BITS) - 1));
                 if !space.may_hit_axis_piece(&axis, reach, piece, tmin, tmax) {
+                    tally(&mut cleared);
                     return tmax;
                 }
+            } else {
+                tally(&mut exact_leaving);
             }
             tested.push(i);
+            tally(&mut tests);
             exact(i, &self.cylinders.get(i as usize), tmax)
         };
-        self.bvh
-            .traverse_prefetching_in::<NEAREST_FIRST>(ray, (tmin, tmax), cylinder, visit);
+        let nodes =
+            self.bvh
+                .traverse_prefetching_in::<NEAREST_FIRST>(ray, (tmin, tmax), cylinder, visit);
+        if COUNTING {
+            counts.nodes += nodes as u64;
+            counts.pieces += pieces;
+            counts.culls += culls;
+            counts.cleared += cleared;
+            counts.exact += tests - exact_leaving;
+            counts.exact_leaving += exact_leaving;
+        }
     }
 
     /// The nearest hit with `tmin < t < tmax`. Of hits at the same `t` the one of the lowest
@@ -237,7 +333,9 @@ impl Scene {
         let mut best: Option<SceneHit> = None;
         let range = (tmin, tmax);
         let left = leaving.map(|l| l.object);
-        self.candidates::<true>(ray, range, left, &mut scratch.tested, |i, c, _| {
+        tally(&mut scratch.counts.nearest);
+        let parts = (&mut scratch.tested, &mut scratch.counts);
+        self.candidates::<true>(ray, range, left, parts, |i, c, _| {
             // The fiber the ray leaves, where only entries count: mostly shown to have none
             // ahead at a small part of the search's cost.
             if leaving.is_some_and(|l| l.object == i && !exits_stop(i) && l.clears(c, ray, tmin)) {
@@ -252,6 +350,9 @@ impl Scene {
             }
             best.map_or(tmax, |b| b.hit.t)
         });
+        if best.is_some() {
+            tally(&mut scratch.counts.nearest_hits);
+        }
         best
     }
 
@@ -266,11 +367,12 @@ impl Scene {
     ) {
         let start = out.len();
         let hits = &mut scratch.hits;
+        tally(&mut scratch.counts.all);
         self.candidates::<false>(
             ray,
             (tmin, tmax),
             None,
-            &mut scratch.tested,
+            (&mut scratch.tested, &mut scratch.counts),
             |i, c, tmax| {
                 hits.clear();
                 c.intersect_all(ray, tmin, tmax, hits);
@@ -307,7 +409,9 @@ impl Scene {
         let mut found = false;
         let mut reached_left = false;
         let range = (tmin, tmax);
-        self.candidates::<false>(ray, range, left, &mut scratch.tested, |i, c, tmax| {
+        tally(&mut scratch.counts.any);
+        let parts = (&mut scratch.tested, &mut scratch.counts);
+        self.candidates::<false>(ray, range, left, parts, |i, c, tmax| {
             if left == Some(i) {
                 reached_left = true;
                 return tmax;
@@ -320,6 +424,9 @@ impl Scene {
             let c = self.cylinder(l.object);
             let entering = !exits_stop(l.object);
             found = !(entering && l.clears(&c, ray, tmin)) && c.any_hit(ray, tmin, tmax, entering);
+        }
+        if found {
+            tally(&mut scratch.counts.any_hits);
         }
         found
     }
@@ -491,6 +598,110 @@ mod tests {
     /// the bit as the same cylinders stored without them, for rays across the fibers (down to
     /// 1e-15 rad off perpendicular, and exactly so), grazing them (1e-9 of the radius deep),
     /// from points on their surface and at random; and at least 36 bytes a segment less.
+    /// A scratch's counts add up: the queries of each kind and their hits are the answers'
+    /// (counted here from what the queries returned), every cull either clears its cylinder or
+    /// sends it to the exact test, a leaf's pieces are at least the culls and the tests without
+    /// one, the fiber a spawned ray leaves goes to its test without a cull, and a ray that
+    /// misses the scene's box walks no node and reaches no piece. Counts of several scratches
+    /// add as their parts.
+    #[test]
+    fn query_counts_add_up() {
+        let (cylinders, controls) = strands((60, 8, 4), |_, points| {
+            let strand = Strand {
+                points,
+                radius: [0.004, 0.003],
+                ellipticity: 1.0,
+                twist: [0.0, 0.0],
+                section: Default::default(),
+            };
+            (strand, StrandFraming::RotationMinimizing)
+        });
+        let scene = Scene::with_strands(cylinders.clone(), controls);
+        let bounds = scene.bvh().bounds();
+        let mut rng = Rng::from_seed(12);
+        let (mut scratch, mut other) = (Scratch::default(), Scratch::default());
+        let mut want = QueryCounts::default();
+        let mut all = Vec::new();
+        for i in 0..3000 {
+            // Toward a point near a fiber's axis (most hit), from anywhere about it.
+            let c = &cylinders[rng.next_u64() as usize % cylinders.len()];
+            let target = c.axis().point(rng.uniform()) + rng.unit_vector() * 0.006;
+            let origin = target + rng.unit_vector() * 0.5;
+            let ray = Ray::new(origin, target - origin);
+            let s = if i % 3 == 0 { &mut other } else { &mut scratch };
+            match i % 4 {
+                0 | 1 => {
+                    want.nearest += 1;
+                    let hit = scene.nearest_hit(&ray, 0.0, f64::INFINITY, s);
+                    want.nearest_hits += u64::from(hit.is_some());
+                    // A spawned ray from that hit, leaving its fiber.
+                    if let Some(h) = hit {
+                        let leaving = Leaving {
+                            object: h.object,
+                            u: h.hit.u,
+                        };
+                        let spawned = Ray::new(ray.at(h.hit.t), rng.unit_vector());
+                        let before = s.counts().exact_leaving;
+                        want.nearest += 1;
+                        let again = scene.nearest_hit_where(
+                            &spawned,
+                            (1e-9, f64::INFINITY),
+                            Some(leaving),
+                            s,
+                            |_| true,
+                        );
+                        want.nearest_hits += u64::from(again.is_some());
+                        assert!(s.counts().exact_leaving <= before + 1, "its fiber once");
+                    }
+                }
+                2 => {
+                    want.any += 1;
+                    want.any_hits += u64::from(scene.any_hit(&ray, 0.0, f64::INFINITY, s));
+                }
+                _ => {
+                    want.all += 1;
+                    all.clear();
+                    scene.all_hits(&ray, 0.0, f64::INFINITY, &mut all, s);
+                }
+            }
+        }
+        let mut got = scratch.counts();
+        got += other.counts();
+        let kinds = |c: &QueryCounts| (c.nearest, c.nearest_hits, c.any, c.any_hits, c.all);
+        assert_eq!(kinds(&got), kinds(&want), "queries and hits");
+        assert!(want.nearest_hits > 500 && want.any_hits > 100, "{want:?}");
+        assert_eq!(
+            got.exact,
+            got.culls - got.cleared,
+            "a cull clears or sends to the test"
+        );
+        assert!(got.pieces >= got.culls + got.exact_leaving, "{got:?}");
+        assert!(
+            got.cleared > 0 && got.exact > 0 && got.exact_leaving > 0,
+            "{got:?}"
+        );
+        assert!(
+            got.nodes >= got.queries(),
+            "every ray here enters the scene's box: {got:?}"
+        );
+        // A ray that misses the scene's box.
+        let before = scratch.take_counts();
+        assert_eq!(scratch.counts(), QueryCounts::default(), "taken");
+        let away = Ray::new(bounds.max + DVec3::ONE, DVec3::ONE);
+        assert!(
+            scene
+                .nearest_hit(&away, 0.0, f64::INFINITY, &mut scratch)
+                .is_none()
+        );
+        let c = scratch.counts();
+        assert_eq!(
+            (c.nearest, c.nodes, c.pieces, c.culls),
+            (1, 0, 0, 0),
+            "{c:?}"
+        );
+        assert!(before.queries() > 0);
+    }
+
     #[test]
     fn strands_by_their_control_points_give_the_same_hits() {
         let (cylinders, controls) = strands((60, 10, 5), |k, points| {

@@ -16,12 +16,13 @@
 //! depend on the thread count or the crop window.
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, PoisonError};
 
 use gencyl::{Part, Ray};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::accel::{SceneHit, Scratch};
+use crate::accel::{QueryCounts, SceneHit, Scratch};
 use crate::formats::film::{Film, Window};
 use crate::optics::camera::{Camera, CameraRays};
 use crate::optics::light::Light;
@@ -267,6 +268,8 @@ pub struct Rendered {
     /// Samples whose value was NaN or infinite (in a channel other than depth's `Z`): never
     /// written; their pixels are the mean of the finite ones.
     pub non_finite_samples: u64,
+    /// What the render's ray queries did (all threads).
+    pub counts: QueryCounts,
 }
 
 /// Renders `window` of the frame into a film (rows in parallel on the current rayon pool),
@@ -285,6 +288,7 @@ pub fn render(
     let row_len = window.width() as usize * nc;
     let done = AtomicU64::new(0);
     let dropped = AtomicU64::new(0);
+    let counts = Mutex::new(QueryCounts::default());
     film.data
         .par_chunks_mut(row_len)
         .enumerate()
@@ -303,11 +307,14 @@ pub fn render(
             if row_dropped > 0 {
                 dropped.fetch_add(row_dropped, Ordering::Relaxed);
             }
+            let row_counts = buf.scratch.take_counts();
+            *counts.lock().unwrap_or_else(PoisonError::into_inner) += row_counts;
             progress(done.fetch_add(1, Ordering::Relaxed) + 1);
         });
     Rendered {
         film,
         non_finite_samples: dropped.into_inner(),
+        counts: counts.into_inner().unwrap_or_else(PoisonError::into_inner),
     }
 }
 
