@@ -594,10 +594,6 @@ mod tests {
         assert!(blocked > 2000, "{blocked} blocked of 8000 queries");
     }
 
-    /// Strands named by their control points store their segments by them: the same hits to
-    /// the bit as the same cylinders stored without them, for rays across the fibers (down to
-    /// 1e-15 rad off perpendicular, and exactly so), grazing them (1e-9 of the radius deep),
-    /// from points on their surface and at random; and at least 36 bytes a segment less.
     /// A scratch's counts add up: the queries of each kind and their hits are the answers'
     /// (counted here from what the queries returned), every cull either clears its cylinder or
     /// sends it to the exact test, a leaf's pieces are at least the culls and the tests without
@@ -702,6 +698,10 @@ mod tests {
         assert!(before.queries() > 0);
     }
 
+    /// Strands named by their control points store their segments by them: the same hits to
+    /// the bit as the same cylinders stored without them, for rays across the fibers (down to
+    /// 1e-15 rad off perpendicular, and exactly so), grazing them (1e-9 of the radius deep),
+    /// from points on their surface and at random; and at least 36 bytes a segment less.
     #[test]
     fn strands_by_their_control_points_give_the_same_hits() {
         let (cylinders, controls) = strands((60, 10, 5), |k, points| {
