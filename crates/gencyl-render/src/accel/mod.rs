@@ -19,9 +19,9 @@ pub mod scene;
 pub mod shapes;
 
 pub use bvh::Bvh;
+pub use scene::{Leaving, QueryCounts, Scene, SceneHit, Scratch, sort_hits};
+pub use shapes::{Plane, Sphere};
 
 /// Whether the queries count what they do ([`QueryCounts`]): with the `stats` feature, and in
 /// this crate's tests; compiled out otherwise (the counting costs rays about 1.5%).
 pub const COUNTING: bool = cfg!(any(test, feature = "stats"));
-pub use scene::{Leaving, QueryCounts, Scene, SceneHit, Scratch, sort_hits};
-pub use shapes::{Plane, Sphere};

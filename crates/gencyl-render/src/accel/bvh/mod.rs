@@ -211,7 +211,7 @@ impl Bvh {
         prefetch_leaf: impl Fn(&[u32]),
         visit: impl FnMut(u32, f64) -> f64,
     ) {
-        let _nodes = self.traverse_prefetching_in::<true>(ray, (tmin, tmax), prefetch_leaf, visit);
+        self.traverse_prefetching_in::<true>(ray, (tmin, tmax), prefetch_leaf, visit);
     }
 
     /// [`Self::traverse_prefetching`], nearer children first where `NEAREST_FIRST`, else
@@ -1381,8 +1381,6 @@ mod tests {
         out
     }
 
-    /// The walk visits leaves in the order of a recursive reference walk: at each node, the
-    /// children whose boxes the ray enters, nearest entry first, equal entries in slot order.
     /// A walk returns the number of nodes it tested: where nothing lowers `tmax`, every node
     /// whose slot box the ray enters from the root (counted by a plain recursion with the same
     /// box test), in either order; none for a ray that misses the root box, or for a tree
@@ -1438,6 +1436,8 @@ mod tests {
         assert_eq!((nodes, seen), (0, 1), "a one-leaf tree tests no node");
     }
 
+    /// The walk visits leaves in the order of a recursive reference walk: at each node, the
+    /// children whose boxes the ray enters, nearest entry first, equal entries in slot order.
     /// Boxes repeated (ties), random boxes, and rays from inside and outside the model.
     #[test]
     fn visits_nearest_first_with_ties_in_slot_order() {
