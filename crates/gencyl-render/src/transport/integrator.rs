@@ -22,7 +22,7 @@ use gencyl::{Part, Ray};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::accel::{QueryCounts, SceneHit, Scratch};
+use crate::accel::{COUNTING, QueryCounts, SceneHit, Scratch};
 use crate::formats::film::{Film, Window};
 use crate::optics::camera::{Camera, CameraRays};
 use crate::optics::light::Light;
@@ -307,8 +307,10 @@ pub fn render(
             if row_dropped > 0 {
                 dropped.fetch_add(row_dropped, Ordering::Relaxed);
             }
-            let row_counts = buf.scratch.take_counts();
-            *counts.lock().unwrap_or_else(PoisonError::into_inner) += row_counts;
+            if COUNTING {
+                let row_counts = buf.scratch.take_counts();
+                *counts.lock().unwrap_or_else(PoisonError::into_inner) += row_counts;
+            }
             progress(done.fetch_add(1, Ordering::Relaxed) + 1);
         });
     Rendered {
