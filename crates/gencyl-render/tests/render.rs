@@ -147,6 +147,65 @@ fn xray_lengths_match_chords() {
     );
 }
 
+/// Asking once a pixel whether its frustum meets any fiber changes no pixel: every pixel of
+/// curly strands seen by perspective and orthographic cameras, near and far, under `path`
+/// and `normals`, equals the mean of its samples each traced in full; some pixels see only
+/// the background (the rays are then not traced among the fibers) and some see fibers.
+#[test]
+fn pixel_frustums_change_no_pixel() {
+    let strands = "[[strand]]\npoints = [[-2, 0, 0], [-0.5, 0.4, 0.1], [0.5, -0.3, 0], [2, 0.1, 0.2]]\n\
+                   radius = [0.05, 0.02]\nmaterial = \"m\"\n\
+                   [[strand]]\npoints = [[-1, -1, 0.3], [0, -0.6, -0.2], [1, -1.2, 0.1]]\n\
+                   radius = [0.03, 0.03]\nmaterial = \"m\"\n\
+                   [material.m]\ntype = \"hair\"\nmelanin = 1\n\
+                   [environment]\ncolor = 0.5\n\
+                   [[light]]\ntype = \"directional\"\ndirection = [0, -1, -1]\nirradiance = 2\n";
+    let cameras = [
+        "position = [0, 0, 5]\nlook_at = [0, -0.3, 0]\nfov = 40\nresolution = [24, 18]",
+        "position = [0.3, 1, 40]\nlook_at = [0, 0, 0]\nfov = 5\nresolution = [20, 20]",
+        "type = \"orthographic\"\nposition = [0, 0, 5]\nlook_at = [0, -0.3, 0]\n\
+         view_height = 3\nresolution = [16, 16]",
+    ];
+    let (mut empty, mut seen) = (0, 0);
+    for camera in cameras {
+        let (w, cam) = world(&format!("{strands}[camera]\n{camera}\n"));
+        let rays = cam.rays();
+        for integ in [Integrator::Path, Integrator::Normals] {
+            let s = settings(integ, 4);
+            let mut buf = Buffers::default();
+            for y in 0..cam.height {
+                for x in 0..cam.width {
+                    let (fx, fy) = (x as f64, y as f64);
+                    let fibers = w.fibers_may_meet(&rays.frustum([fx, fy], [fx + 1.0, fy + 1.0]));
+                    empty += usize::from(!fibers);
+                    seen += usize::from(fibers);
+                    let (v, dropped) = integrator::pixel(&w, &rays, &s, x, y, &mut buf);
+                    assert_eq!(dropped, 0);
+                    let mut sum = [0.0; 5];
+                    for i in 0..s.spp {
+                        let mut rng = SampleRng::new(x, y, i, s.seed);
+                        let ray = rays.ray(fx + rng.uniform(), fy + rng.uniform());
+                        let one = integrator::sample_ray(&w, &cam, &s, &ray, &mut rng, &mut buf);
+                        for k in 0..5 {
+                            sum[k] += one[k];
+                        }
+                    }
+                    let mut want = sum.map(|x| x / s.spp as f64);
+                    if integ == Integrator::Normals {
+                        want[4] = v[4];
+                    }
+                    assert_eq!(
+                        v.map(f64::to_bits),
+                        want.map(f64::to_bits),
+                        "{camera} ({x}, {y})"
+                    );
+                }
+            }
+        }
+    }
+    assert!(empty > 200 && seen > 50, "{empty} empty, {seen} seen");
+}
+
 /// One camera ray's mean radiance over `n` samples, and the standard error.
 fn mean_radiance(w: &World, cam: &Camera, s: &RenderSettings, ray: Ray, n: u32) -> (f64, f64) {
     let mut buf = Buffers::default();

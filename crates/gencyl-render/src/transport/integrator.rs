@@ -63,10 +63,25 @@ pub fn sample_ray(
     rng: &mut SampleRng,
     buf: &mut Buffers,
 ) -> Sample {
+    sample_ray_where(world, camera, settings, ray, true, rng, buf)
+}
+
+/// [`sample_ray`] for a camera ray that meets no fiber unless `fibers` (the fibers are then
+/// left out of its first query, [`World::intersect_where`]; the same value).
+pub fn sample_ray_where(
+    world: &World,
+    camera: &Camera,
+    settings: &RenderSettings,
+    ray: &Ray,
+    fibers: bool,
+    rng: &mut SampleRng,
+    buf: &mut Buffers,
+) -> Sample {
     let miss_rgb = |d: DVec3| world.environment.map_or(DVec3::ZERO, |e| e.radiance(d));
     match settings.integrator {
         Integrator::Normals | Integrator::Uv | Integrator::Depth => {
-            let Some(h) = world.intersect(ray, (0.0, f64::INFINITY), None, &mut buf.scratch) else {
+            let range = (0.0, f64::INFINITY);
+            let Some(h) = world.intersect_where(ray, range, None, fibers, &mut buf.scratch) else {
                 return [0.0, 0.0, 0.0, 0.0, f64::INFINITY];
             };
             let c = match (settings.integrator, h.surface) {
@@ -94,7 +109,7 @@ pub fn sample_ray(
             [tr, tr, tr, if l > 0.0 { 1.0 } else { 0.0 }, l]
         }
         Integrator::Direct | Integrator::Path => {
-            let (c, hit) = radiance(world, settings, ray, rng, buf, miss_rgb);
+            let (c, hit) = radiance(world, settings, ray, fibers, rng, buf, miss_rgb);
             [c.x, c.y, c.z, if hit { 1.0 } else { 0.0 }, 0.0]
         }
     }
@@ -120,6 +135,7 @@ fn radiance(
     world: &World,
     settings: &RenderSettings,
     camera_ray: &Ray,
+    camera_fibers: bool,
     rng: &mut SampleRng,
     buf: &mut Buffers,
     env: impl Fn(DVec3) -> DVec3,
@@ -141,7 +157,9 @@ fn radiance(
     // The surface `ray` leaves (none for the camera's).
     let mut leaving = None;
     for depth in 0..=settings.max_depth {
-        let Some(h) = world.intersect(&ray, (0.0, f64::INFINITY), leaving, &mut buf.scratch) else {
+        let fibers = depth > 0 || camera_fibers;
+        let range = (0.0, f64::INFINITY);
+        let Some(h) = world.intersect_where(&ray, range, leaving, fibers, &mut buf.scratch) else {
             if let Some(e) = world.environment {
                 let w = if prev_pdf.is_infinite() {
                     1.0
@@ -320,6 +338,11 @@ pub fn render(
     }
 }
 
+/// Pixels of at least this many samples ask first whether their frustum meets any fiber
+/// ([`World::fibers_may_meet`]; X-ray's crossings do not ask); fewer samples would not repay
+/// the walk.
+const FRUSTUM_SAMPLES: u32 = 4;
+
 /// The value of pixel `(x, y)`: the mean of its finite samples (`Z`: their minimum), and the
 /// number of samples dropped because a value other than `Z` was NaN or infinite. A pixel whose
 /// every sample was dropped is 0.
@@ -334,10 +357,24 @@ pub fn pixel(
     let mut sum = [0.0; 5];
     let mut z = f64::INFINITY;
     let mut dropped = 0;
+    // Whether the pixel's rays may meet a fiber, asked once for all its samples (a walk of
+    // the tree with the pixel's frustum instead of one a ray where nothing is there).
+    let (fx, fy) = (x as f64, y as f64);
+    let fibers = settings.spp < FRUSTUM_SAMPLES
+        || settings.integrator == Integrator::Xray
+        || world.fibers_may_meet(&camera.frustum([fx, fy], [fx + 1.0, fy + 1.0]));
     for s in 0..settings.spp {
         let mut rng = SampleRng::new(x, y, s, settings.seed);
-        let ray = camera.ray(x as f64 + rng.uniform(), y as f64 + rng.uniform());
-        let v = sample_ray(world, camera.camera(), settings, &ray, &mut rng, buf);
+        let ray = camera.ray(fx + rng.uniform(), fy + rng.uniform());
+        let v = sample_ray_where(
+            world,
+            camera.camera(),
+            settings,
+            &ray,
+            fibers,
+            &mut rng,
+            buf,
+        );
         // The fifth value is the hit's distance (infinite where the sample saw nothing: a
         // value, not an overflow) except for X-ray, where it is a path length.
         let z_ok = if settings.integrator == Integrator::Xray {

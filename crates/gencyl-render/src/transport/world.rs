@@ -6,6 +6,7 @@ use glam::DVec3;
 
 use crate::accel::shapes::{Plane, Sphere};
 use crate::accel::{Leaving, Scene, SceneHit, Scratch};
+use crate::optics::camera::Frustum;
 use crate::optics::light::{Environment, Light};
 use crate::optics::material::{Material, SceneMaterial, SectionAt, ShadingPoint};
 use crate::scene_file::SceneDescription;
@@ -159,11 +160,35 @@ impl World {
     pub fn intersect(
         &self,
         ray: &Ray,
-        (tmin, tmax): (f64, f64),
+        range: (f64, f64),
         leaving: Option<Surface>,
         scratch: &mut Scratch,
     ) -> Option<WorldHit> {
-        let mut best: Option<WorldHit> = self
+        self.intersect_where(ray, range, leaving, true, scratch)
+    }
+
+    /// Whether any fiber may meet `frustum`: `false` only where no ray within it can hit a
+    /// fiber (no leaf box of the BVH meets it, [`crate::accel::Bvh::some_leaf_in`]).
+    pub fn fibers_may_meet(&self, frustum: &Frustum) -> bool {
+        self.scene
+            .bvh()
+            .some_leaf_in(frustum.eye(), frustum.planes())
+    }
+
+    /// [`World::intersect`], leaving the fibers out unless `fibers` (for a ray known to
+    /// miss them: [`World::fibers_may_meet`]).
+    pub fn intersect_where(
+        &self,
+        ray: &Ray,
+        (tmin, tmax): (f64, f64),
+        leaving: Option<Surface>,
+        fibers: bool,
+        scratch: &mut Scratch,
+    ) -> Option<WorldHit> {
+        if !fibers {
+            return self.nearest_other(ray, (tmin, tmax), None);
+        }
+        let best: Option<WorldHit> = self
             .scene
             .nearest_hit_where(ray, (tmin, tmax), fiber(leaving), scratch, |i| {
                 self.exits_stop(i)
@@ -179,6 +204,16 @@ impl World {
                     part: hit.part,
                 },
             });
+        self.nearest_other(ray, (tmin, tmax), best)
+    }
+
+    /// The nearest of `best` and the hits on spheres and planes with `tmin < t < tmax`.
+    fn nearest_other(
+        &self,
+        ray: &Ray,
+        (tmin, tmax): (f64, f64),
+        mut best: Option<WorldHit>,
+    ) -> Option<WorldHit> {
         let mut limit = best.map_or(tmax, |b| b.t);
         for (s, surface) in self.spheres() {
             if let Some((t0, t1)) = s.crossings(ray) {

@@ -17,7 +17,7 @@
 use arrayvec::ArrayVec;
 use gencyl::{Aabb, Ray};
 use glam::DVec3;
-use wide::{CmpGe, CmpLe, f32x8, f64x4};
+use wide::{CmpGe, CmpLe, CmpLt, f32x8, f64x4};
 
 use super::prefetch::prefetch;
 
@@ -33,6 +33,10 @@ const WIDTH: usize = 8;
 /// A bound on the binary tree's depth (48 SAH levels + 32 halving levels + 1); the wide
 /// tree is no deeper.
 const MAX_DEPTH: usize = 96;
+/// The relative slack of [`Bvh::some_leaf_in`]'s test: sixteen units of `f32`'s rounding.
+pub const REGION_SLACK: f64 = 16.0 * f32::EPSILON as f64 / 2.0;
+/// The slack of [`Bvh::some_leaf_in`] for the anchor's own rounding, relative to its size.
+pub const ANCHOR_SLACK: f64 = 1e-12;
 /// Traversal stack size: each wide level leaves at most `WIDTH - 1` siblings on it (it pushes
 /// up to `WIDTH` and pops one), so at depth `d` it holds at most `(WIDTH - 1) d + 1`.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
@@ -184,6 +188,76 @@ impl Bvh {
             let s = c.offset as usize;
             &self.indices[s..s + c.count as usize]
         }
+    }
+
+    /// Whether some leaf's box may meet the convex region of the points `p` with
+    /// `n.(p - anchor) >= c` for every plane `(n, c)` (`n` unit): `false` only if each leaf
+    /// box (or a box above it) lies beyond some plane by more than [`REGION_SLACK`] times
+    /// `|p - anchor|_1 + |c| + |anchor - center|_1` at its farthest corner `p` along `n`, plus
+    /// [`ANCHOR_SLACK`] `|anchor|_1` (for regions whose planes are placed in `f64` about a far
+    /// anchor, as an orthographic camera's rays start). (A box can meet every plane's
+    /// half-space and yet miss the region; such boxes count as meeting it.) A tree of one
+    /// leaf answers `true`, an empty one `false`.
+    ///
+    /// Each node's eight boxes are tested at once in `f32` relative to [`Bvh`]'s `center`:
+    /// the farthest corner along `n` gives `sum_k max(n_k lo_k, n_k hi_k)` with `lo`, `hi`
+    /// relative to the anchor. Its rounding (the stored bounds are exact; the anchor's shift
+    /// and `n` rounded to `f32`, and three products and sums, each within `2^-24`) stays
+    /// below 8 units of `2^-24` of the same sizes, and the slack is 16: no box the exact
+    /// test keeps is refused. A box with an infinite bound (or one beyond `f32`'s range
+    /// relative to the anchor) makes the slack infinite and is kept.
+    pub fn some_leaf_in(&self, anchor: DVec3, planes: &[(DVec3, f64)]) -> bool {
+        let Some(root) = self.root else {
+            return false;
+        };
+        if root.count > 0 {
+            return true;
+        }
+        let a = anchor - self.center;
+        let shift =
+            REGION_SLACK * a.abs().element_sum() + ANCHOR_SLACK * anchor.abs().element_sum();
+        let a = a.to_array().map(|x| f32x8::splat(x as f32));
+        let planes: ArrayVec<([f32x8; 3], f32x8), 8> = planes
+            .iter()
+            .take(8)
+            .map(|&(n, c)| {
+                let floor = c - REGION_SLACK * c.abs() - shift;
+                (
+                    n.to_array().map(|x| f32x8::splat(x as f32)),
+                    f32x8::splat((floor as f32).next_down()),
+                )
+            })
+            .collect();
+        let slack = f32x8::splat(REGION_SLACK as f32);
+        let mut stack: ArrayVec<u32, STACK> = ArrayVec::new();
+        stack.push(root.offset);
+        while let Some(i) = stack.pop() {
+            let n = &self.nodes[i as usize];
+            let lo: [f32x8; 3] = std::array::from_fn(|k| f32x8::from(n.min()[k]) - a[k]);
+            let hi: [f32x8; 3] = std::array::from_fn(|k| f32x8::from(n.max()[k]) - a[k]);
+            let size = |k: usize| lo[k].abs().max(hi[k].abs());
+            let scale = slack * (size(0) + size(1) + size(2));
+            let mut beyond: i32 = 0;
+            for (nk, floor) in &planes {
+                let far = |k: usize| (nk[k] * lo[k]).max(nk[k] * hi[k]);
+                beyond |= (far(0) + far(1) + far(2))
+                    .cmp_lt(*floor - scale)
+                    .move_mask();
+            }
+            let mut meets = !beyond & ((1 << WIDTH) - 1);
+            while meets != 0 {
+                let child = n.child[meets.trailing_zeros() as usize];
+                meets &= meets - 1;
+                if child.count == Child::EMPTY.count {
+                    continue;
+                }
+                if child.count > 0 {
+                    return true;
+                }
+                stack.push(child.offset);
+            }
+        }
+        false
     }
 
     /// Visits, nearer boxes first, every primitive whose leaf box the ray meets within
@@ -898,6 +972,109 @@ mod tests {
         let o = rng.in_box(DVec3::splat(-5.0), DVec3::splat(15.0));
         let b = boxes[rng.next_u64() as usize % boxes.len()];
         Ray::new(o, 0.5 * (b.min + b.max) - o)
+    }
+
+    /// `some_leaf_in` never refuses a region that holds a point of a primitive's box: pixel
+    /// frustums of random cameras (perspective, fields of view from 1e-4 to 170 degrees, and
+    /// orthographic) about boxes of sizes 1e-3 to 1e4 at the origin and 1e4 away, checked
+    /// against every box's corners and centre; a pixel whose corner ray runs exactly through
+    /// a box's point (the image centre looks at it) always meets it; a half-space beyond every
+    /// box meets nothing.
+    #[test]
+    fn regions_keep_every_box_they_meet() {
+        use crate::optics::{Camera, Projection};
+        let mut rng = Rng::from_seed(41);
+        let inside = |eye: DVec3, planes: &[(DVec3, f64)], p: DVec3| {
+            planes.iter().all(|&(n, c)| n.dot(p - eye) >= c)
+        };
+        let (mut met, mut missed) = (0, 0);
+        for case in 0..120 {
+            let scale = [1e-3, 1.0, 1e4][case % 3];
+            let shift = DVec3::splat(if case % 2 == 0 { 0.0 } else { 1e4 });
+            let boxes: Vec<Aabb> = scattered_boxes(&mut rng, 600, 0.3)
+                .iter()
+                .map(|b| Aabb {
+                    min: b.min * scale + shift,
+                    max: b.max * scale + shift,
+                })
+                .collect();
+            let bvh = Bvh::build(&boxes);
+            let points: Vec<DVec3> = boxes
+                .iter()
+                .flat_map(|b| {
+                    (0..8)
+                        .map(|i| {
+                            DVec3::select(
+                                glam::BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0),
+                                b.max,
+                                b.min,
+                            )
+                        })
+                        .chain([0.5 * (b.min + b.max)])
+                        .collect::<Vec<_>>()
+                })
+                .collect();
+            for _ in 0..40 {
+                let target = points[rng.next_u64() as usize % points.len()];
+                let eye = rng.in_box(DVec3::splat(-5.0), DVec3::splat(15.0)) * scale + shift;
+                let fov = 1e-4 * 1.7e6f64.powf(rng.uniform());
+                let size = |rng: &mut Rng| 2 * (1 + rng.next_u64() % 500) as u32;
+                let (width, height) = (size(&mut rng), size(&mut rng));
+                let projection = if rng.uniform() < 0.3 {
+                    Projection::Orthographic {
+                        height: scale * 1e-3 * 1e4f64.powf(rng.uniform()),
+                    }
+                } else {
+                    Projection::Perspective { fov }
+                };
+                let cam = Camera {
+                    position: eye,
+                    look_at: target,
+                    up: rng.unit_vector(),
+                    projection,
+                    width,
+                    height,
+                };
+                if cam.validate().is_err() {
+                    continue;
+                }
+                let rays = cam.rays();
+                // The pixel whose top left corner is the image centre: its corner ray runs
+                // through the target (orthographic: the target lies ahead of the eye).
+                let (cx, cy) = ((width / 2) as f64, (height / 2) as f64);
+                let f = rays.frustum([cx, cy], [cx + 1.0, cy + 1.0]);
+                assert!(
+                    bvh.some_leaf_in(f.eye(), f.planes()),
+                    "the pixel at the centre misses its target: {cam:?}"
+                );
+                // Any pixel: never refused while it holds a box's point.
+                let (x, y) = (
+                    rng.next_u64() % width as u64,
+                    rng.next_u64() % height as u64,
+                );
+                let (x, y) = (x as f64, y as f64);
+                let f = rays.frustum([x, y], [x + 1.0, y + 1.0]);
+                let answer = bvh.some_leaf_in(f.eye(), f.planes());
+                let holds = points.iter().any(|&p| inside(f.eye(), f.planes(), p));
+                assert!(
+                    answer || !holds,
+                    "refused a region holding a point: {cam:?} {x} {y}"
+                );
+                met += usize::from(answer);
+                missed += usize::from(!answer);
+                // A half-space beyond every box, by a thousandth of the scene and the boxes'
+                // rounding to f32 where the build takes them: nothing.
+                let n = rng.unit_vector();
+                let far = points
+                    .iter()
+                    .map(|p| n.dot(*p - eye))
+                    .fold(f64::MIN, f64::max);
+                let away = [(n, far + 1e-3 * scale + 1e-6 * (shift.x + 20.0 * scale))];
+                assert!(!bvh.some_leaf_in(eye, &away), "beyond every box: {n}");
+            }
+        }
+        assert!(met > 500 && missed > 500, "{met} met, {missed} missed");
+        assert!(!Bvh::build(&[]).some_leaf_in(DVec3::ZERO, &[]));
     }
 
     /// The primitives `traverse` visits on `ray` over `[0, inf)`, in order, nothing cut short.
