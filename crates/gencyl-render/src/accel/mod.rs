@@ -18,7 +18,7 @@ pub mod prefetch;
 pub mod scene;
 pub mod shapes;
 
-pub use bvh::Bvh;
+pub use bvh::{Bvh, RegionList};
 pub use scene::{Leaving, QueryCounts, Scene, SceneHit, Scratch, sort_hits};
 pub use shapes::{Plane, Sphere};
 

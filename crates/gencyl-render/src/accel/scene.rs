@@ -6,7 +6,7 @@ use gencyl::{GeneralizedCylinder, Hit, Method, PackedCylinders, Ray, Section, St
 use rayon::prelude::*;
 
 use crate::accel::COUNTING;
-use crate::accel::bvh::Bvh;
+use crate::accel::bvh::{Bvh, RegionList};
 use crate::accel::cull::{Piece, RaySpace, level_for, pieces_bounds_under};
 use crate::accel::prefetch::prefetch_bytes;
 
@@ -243,6 +243,7 @@ impl Scene {
         ray: &Ray,
         (tmin, tmax): (f64, f64),
         leaving: Option<u32>,
+        list: Option<&RegionList>,
         (tested, counts): (&mut Vec<u32>, &mut QueryCounts),
         mut exact: impl FnMut(u32, &GeneralizedCylinder, f64) -> f64,
     ) {
@@ -290,9 +291,13 @@ impl Scene {
             tally(&mut tests);
             exact(i, &self.cylinders.get(i as usize), tmax)
         };
-        let nodes =
-            self.bvh
-                .traverse_prefetching_in::<NEAREST_FIRST>(ray, (tmin, tmax), cylinder, visit);
+        let range = (tmin, tmax);
+        let nodes = match list {
+            Some(list) => self.bvh.traverse_listed(ray, range, list, visit),
+            None => self
+                .bvh
+                .traverse_prefetching_in::<NEAREST_FIRST>(ray, range, cylinder, visit),
+        };
         if COUNTING {
             counts.nodes += nodes as u64;
             counts.pieces += pieces;
@@ -325,8 +330,37 @@ impl Scene {
     pub fn nearest_hit_where(
         &self,
         ray: &Ray,
+        range: (f64, f64),
+        leaving: Option<Leaving>,
+        scratch: &mut Scratch,
+        exits_stop: impl Fn(u32) -> bool,
+    ) -> Option<SceneHit> {
+        self.nearest(ray, range, leaving, None, scratch, exits_stop)
+    }
+
+    /// [`Self::nearest_hit_where`] for a ray within a region whose leaves `list` holds
+    /// ([`Bvh::list_region`]; a camera ray within its pixel's frustum): the same hit, found
+    /// over the list instead of the tree ([`Bvh::traverse_listed`]).
+    pub fn nearest_hit_listed(
+        &self,
+        ray: &Ray,
+        range: (f64, f64),
+        list: &RegionList,
+        scratch: &mut Scratch,
+        exits_stop: impl Fn(u32) -> bool,
+    ) -> Option<SceneHit> {
+        self.nearest(ray, range, None, Some(list), scratch, exits_stop)
+    }
+
+    /// [`Self::nearest_hit_where`] over the tree, or over `list` where given (inlined into
+    /// each, so that the tree's walk does not test for a list).
+    #[inline(always)]
+    fn nearest(
+        &self,
+        ray: &Ray,
         (tmin, tmax): (f64, f64),
         leaving: Option<Leaving>,
+        list: Option<&RegionList>,
         scratch: &mut Scratch,
         exits_stop: impl Fn(u32) -> bool,
     ) -> Option<SceneHit> {
@@ -335,7 +369,7 @@ impl Scene {
         let left = leaving.map(|l| l.object);
         tally(&mut scratch.counts.nearest);
         let parts = (&mut scratch.tested, &mut scratch.counts);
-        self.candidates::<true>(ray, range, left, parts, |i, c, _| {
+        self.candidates::<true>(ray, range, left, list, parts, |i, c, _| {
             // The fiber the ray leaves, where only entries count: mostly shown to have none
             // ahead at a small part of the search's cost.
             if leaving.is_some_and(|l| l.object == i && !exits_stop(i) && l.clears(c, ray, tmin)) {
@@ -371,6 +405,7 @@ impl Scene {
         self.candidates::<false>(
             ray,
             (tmin, tmax),
+            None,
             None,
             (&mut scratch.tested, &mut scratch.counts),
             |i, c, tmax| {
@@ -411,7 +446,7 @@ impl Scene {
         let range = (tmin, tmax);
         tally(&mut scratch.counts.any);
         let parts = (&mut scratch.tested, &mut scratch.counts);
-        self.candidates::<false>(ray, range, left, parts, |i, c, tmax| {
+        self.candidates::<false>(ray, range, left, None, parts, |i, c, tmax| {
             if left == Some(i) {
                 reached_left = true;
                 return tmax;

@@ -186,7 +186,11 @@ impl CameraRays {
                 [(u, sx0), (-u, -sx1), (v, sy1), (-v, -sy0), (w, 0.0)]
             }
         };
-        Frustum { eye, planes }
+        Frustum {
+            eye,
+            axis: w,
+            planes,
+        }
     }
 }
 
@@ -195,6 +199,8 @@ impl CameraRays {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frustum {
     eye: DVec3,
+    /// The camera's view direction (unit).
+    axis: DVec3,
     planes: [(DVec3, f64); 5],
 }
 
@@ -202,6 +208,11 @@ impl Frustum {
     /// The point the planes are taken relative to: the camera's position.
     pub fn eye(&self) -> DVec3 {
         self.eye
+    }
+
+    /// The camera's view direction `w` (unit).
+    pub fn axis(&self) -> DVec3 {
+        self.axis
     }
 
     /// The planes `(n, c)`: the region is `n.(p - eye) >= c` for each.

@@ -22,7 +22,7 @@ use gencyl::{Part, Ray};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::accel::{COUNTING, QueryCounts, SceneHit, Scratch};
+use crate::accel::{COUNTING, QueryCounts, RegionList, SceneHit, Scratch};
 use crate::formats::film::{Film, Window};
 use crate::optics::camera::{Camera, CameraRays};
 use crate::optics::light::Light;
@@ -30,7 +30,7 @@ use crate::optics::material::{Bsdf, Material};
 use crate::sampling::{SampleRng, power_heuristic};
 pub use crate::settings::{Integrator, RenderSettings};
 use crate::transport::ct;
-use crate::transport::world::{Crossing, Surface, World, WorldHit};
+use crate::transport::world::{Crossing, Fibers, Surface, World, WorldHit};
 
 /// Offsets a ray's origin off the surface at `p` (normal `n`) to the side `dir` goes, by
 /// `1e-9 (1 + |p|_inf)`: far above the hits' error (about `1e-12` of the scene's size), far
@@ -49,6 +49,8 @@ pub struct Buffers {
     pub(crate) crossings: Vec<Crossing>,
     /// Path length per material.
     pub(crate) lengths: Vec<f64>,
+    /// The BVH leaves a pixel's frustum may meet.
+    pub(crate) region: RegionList,
 }
 
 /// One sample's contribution to a pixel, per channel of [`Integrator::channels`].
@@ -63,17 +65,17 @@ pub fn sample_ray(
     rng: &mut SampleRng,
     buf: &mut Buffers,
 ) -> Sample {
-    sample_ray_where(world, camera, settings, ray, true, rng, buf)
+    sample_ray_where(world, camera, settings, ray, Fibers::All, rng, buf)
 }
 
-/// [`sample_ray`] for a camera ray that meets no fiber unless `fibers` (the fibers are then
-/// left out of its first query, [`World::intersect_where`]; the same value).
+/// [`sample_ray`] for a camera ray that may meet only `fibers` (its first query's, then
+/// [`World::intersect_where`]; the same value).
 pub fn sample_ray_where(
     world: &World,
     camera: &Camera,
     settings: &RenderSettings,
     ray: &Ray,
-    fibers: bool,
+    fibers: Fibers,
     rng: &mut SampleRng,
     buf: &mut Buffers,
 ) -> Sample {
@@ -135,7 +137,7 @@ fn radiance(
     world: &World,
     settings: &RenderSettings,
     camera_ray: &Ray,
-    camera_fibers: bool,
+    camera_fibers: Fibers,
     rng: &mut SampleRng,
     buf: &mut Buffers,
     env: impl Fn(DVec3) -> DVec3,
@@ -157,7 +159,11 @@ fn radiance(
     // The surface `ray` leaves (none for the camera's).
     let mut leaving = None;
     for depth in 0..=settings.max_depth {
-        let fibers = depth > 0 || camera_fibers;
+        let fibers = if depth == 0 {
+            camera_fibers
+        } else {
+            Fibers::All
+        };
         let range = (0.0, f64::INFINITY);
         let Some(h) = world.intersect_where(&ray, range, leaving, fibers, &mut buf.scratch) else {
             if let Some(e) = world.environment {
@@ -338,9 +344,9 @@ pub fn render(
     }
 }
 
-/// Pixels of at least this many samples ask first whether their frustum meets any fiber
-/// ([`World::fibers_may_meet`]; X-ray's crossings do not ask); fewer samples would not repay
-/// the walk.
+/// Pixels of at least this many samples list first the fibers' BVH leaves their frustum may
+/// meet ([`World::list_fibers`]; X-ray's crossings do not); fewer samples would not repay the
+/// walk.
 const FRUSTUM_SAMPLES: u32 = 4;
 
 /// The value of pixel `(x, y)`: the mean of its finite samples (`Z`: their minimum), and the
@@ -357,12 +363,20 @@ pub fn pixel(
     let mut sum = [0.0; 5];
     let mut z = f64::INFINITY;
     let mut dropped = 0;
-    // Whether the pixel's rays may meet a fiber, asked once for all its samples (a walk of
-    // the tree with the pixel's frustum instead of one a ray where nothing is there).
+    // The fibers' BVH leaves the pixel's rays may meet, listed once for all its samples:
+    // none where nothing is there, else what its camera rays walk instead of the tree.
     let (fx, fy) = (x as f64, y as f64);
-    let fibers = settings.spp < FRUSTUM_SAMPLES
-        || settings.integrator == Integrator::Xray
-        || world.fibers_may_meet(&camera.frustum([fx, fy], [fx + 1.0, fy + 1.0]));
+    let mut region = std::mem::take(&mut buf.region);
+    let fibers = if settings.spp < FRUSTUM_SAMPLES || settings.integrator == Integrator::Xray {
+        Fibers::All
+    } else {
+        world.list_fibers(&camera.frustum([fx, fy], [fx + 1.0, fy + 1.0]), &mut region);
+        if region.is_empty() {
+            Fibers::None
+        } else {
+            Fibers::Listed(&region)
+        }
+    };
     for s in 0..settings.spp {
         let mut rng = SampleRng::new(x, y, s, settings.seed);
         let ray = camera.ray(fx + rng.uniform(), fy + rng.uniform());
@@ -391,6 +405,7 @@ pub fn pixel(
         }
         z = z.min(v[4]);
     }
+    buf.region = region;
     let n = (settings.spp - dropped).max(1) as f64;
     let mut out = sum.map(|x| x / n);
     if settings.integrator == Integrator::Depth {

@@ -14,4 +14,4 @@ pub mod scatter;
 pub mod world;
 
 pub use integrator::{Buffers, render};
-pub use world::{Crossing, Surface, World, WorldHit};
+pub use world::{Crossing, Fibers, Surface, World, WorldHit};

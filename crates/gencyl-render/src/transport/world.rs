@@ -4,6 +4,7 @@
 use gencyl::{Aabb, Frame, GeneralizedCylinder, Part, Ray, Section};
 use glam::DVec3;
 
+use crate::accel::RegionList;
 use crate::accel::shapes::{Plane, Sphere};
 use crate::accel::{Leaving, Scene, SceneHit, Scratch};
 use crate::optics::camera::Frustum;
@@ -90,6 +91,17 @@ pub struct World {
     far_field: Vec<bool>,
 }
 
+/// Which fibers a ray may meet ([`World::intersect_where`]).
+#[derive(Clone, Copy, Debug)]
+pub enum Fibers<'a> {
+    /// Any: the ray walks the fibers' BVH.
+    All,
+    /// None: its frustum's list is empty ([`World::list_fibers`]).
+    None,
+    /// Those whose BVH leaves a region's list holds: a ray within the region.
+    Listed(&'a RegionList),
+}
+
 impl World {
     /// Builds the BVH over a scene description's cylinders (in parallel).
     pub fn new(desc: SceneDescription) -> World {
@@ -164,46 +176,52 @@ impl World {
         leaving: Option<Surface>,
         scratch: &mut Scratch,
     ) -> Option<WorldHit> {
-        self.intersect_where(ray, range, leaving, true, scratch)
+        self.intersect_where(ray, range, leaving, Fibers::All, scratch)
     }
 
-    /// Whether any fiber may meet `frustum`: `false` only where no ray within it can hit a
-    /// fiber (no leaf box of the BVH meets it, [`crate::accel::Bvh::some_leaf_in`]).
-    pub fn fibers_may_meet(&self, frustum: &Frustum) -> bool {
-        self.scene
-            .bvh()
-            .some_leaf_in(frustum.eye(), frustum.planes())
+    /// The leaves of the fibers' BVH that may meet `frustum`, into `out`
+    /// ([`crate::accel::Bvh::list_region`]): empty where no ray within it can hit a fiber.
+    pub fn list_fibers(&self, frustum: &Frustum, out: &mut RegionList) {
+        let bvh = self.scene.bvh();
+        bvh.list_region(frustum.eye(), frustum.planes(), frustum.axis(), out);
     }
 
-    /// [`World::intersect`], leaving the fibers out unless `fibers` (for a ray known to
-    /// miss them: [`World::fibers_may_meet`]).
+    /// [`World::intersect`] with the fibers a ray may meet: all of them, none (a ray within
+    /// a frustum whose list is empty), or those of a list (a camera ray within its pixel's
+    /// frustum, spawned from no surface). The same hit.
     pub fn intersect_where(
         &self,
         ray: &Ray,
         (tmin, tmax): (f64, f64),
         leaving: Option<Surface>,
-        fibers: bool,
+        fibers: Fibers,
         scratch: &mut Scratch,
     ) -> Option<WorldHit> {
-        if !fibers {
-            return self.nearest_other(ray, (tmin, tmax), None);
-        }
-        let best: Option<WorldHit> = self
-            .scene
-            .nearest_hit_where(ray, (tmin, tmax), fiber(leaving), scratch, |i| {
-                self.exits_stop(i)
-            })
-            .map(|SceneHit { hit, object }| WorldHit {
-                t: hit.t,
-                point: hit.point,
-                normal: hit.normal,
-                surface: Surface::Fiber {
-                    object,
-                    u: hit.u,
-                    v: hit.v,
-                    part: hit.part,
-                },
-            });
+        let exits_stop = |i| self.exits_stop(i);
+        let range = (tmin, tmax);
+        let found = match fibers {
+            Fibers::None => None,
+            Fibers::All => {
+                self.scene
+                    .nearest_hit_where(ray, range, fiber(leaving), scratch, exits_stop)
+            }
+            Fibers::Listed(list) => {
+                debug_assert!(leaving.is_none(), "a listed ray leaves no surface");
+                self.scene
+                    .nearest_hit_listed(ray, range, list, scratch, exits_stop)
+            }
+        };
+        let best: Option<WorldHit> = found.map(|SceneHit { hit, object }| WorldHit {
+            t: hit.t,
+            point: hit.point,
+            normal: hit.normal,
+            surface: Surface::Fiber {
+                object,
+                u: hit.u,
+                v: hit.v,
+                part: hit.part,
+            },
+        });
         self.nearest_other(ray, (tmin, tmax), best)
     }
 

@@ -33,9 +33,9 @@ const WIDTH: usize = 8;
 /// A bound on the binary tree's depth (48 SAH levels + 32 halving levels + 1); the wide
 /// tree is no deeper.
 const MAX_DEPTH: usize = 96;
-/// The relative slack of [`Bvh::some_leaf_in`]'s test: sixteen units of `f32`'s rounding.
+/// The relative slack of [`Bvh::list_region`]'s test: sixteen units of `f32`'s rounding.
 pub const REGION_SLACK: f64 = 16.0 * f32::EPSILON as f64 / 2.0;
-/// The slack of [`Bvh::some_leaf_in`] for the anchor's own rounding, relative to its size.
+/// The slack of [`Bvh::list_region`] for the anchor's own rounding, relative to its size.
 pub const ANCHOR_SLACK: f64 = 1e-12;
 /// Traversal stack size: each wide level leaves at most `WIDTH - 1` siblings on it (it pushes
 /// up to `WIDTH` and pops one), so at depth `d` it holds at most `(WIDTH - 1) d + 1`.
@@ -190,29 +190,75 @@ impl Bvh {
         }
     }
 
-    /// Whether some leaf's box may meet the convex region of the points `p` with
-    /// `n.(p - anchor) >= c` for every plane `(n, c)` (`n` unit): `false` only if each leaf
-    /// box (or a box above it) lies beyond some plane by more than [`REGION_SLACK`] times
-    /// `|p - anchor|_1 + |c| + |anchor - center|_1` at its farthest corner `p` along `n`, plus
-    /// [`ANCHOR_SLACK`] `|anchor|_1` (for regions whose planes are placed in `f64` about a far
-    /// anchor, as an orthographic camera's rays start). (A box can meet every plane's
-    /// half-space and yet miss the region; such boxes count as meeting it.) A tree of one
-    /// leaf answers `true`, an empty one `false`.
+    /// The leaves whose boxes may meet the convex region of the points `p` with
+    /// `n.(p - anchor) >= c` for every plane `(n, c)` (`n` unit), into `out`, node by node,
+    /// each node's entry with the least of `axis.(p - anchor)` over its listed boxes (`axis` a
+    /// unit vector; rounded down by `1e-9` of the sizes involved), sorted by it: what rays
+    /// within the region walk instead of the tree ([`Self::traverse_listed`]). A tree of one
+    /// leaf is listed whole, an empty one not at all.
+    ///
+    /// A leaf is left out only if its box (or a box above it) lies beyond some plane by more
+    /// than [`REGION_SLACK`] times `|p - anchor|_1 + |c| + |anchor - center|_1` at its farthest
+    /// corner `p` along `n`, plus [`ANCHOR_SLACK`] `|anchor|_1` (for regions whose planes are
+    /// placed in `f64` about a far anchor, as an orthographic camera's rays start). (A box can
+    /// meet every plane's half-space and yet miss the region; such boxes are listed.)
     ///
     /// Each node's eight boxes are tested at once in `f32` relative to [`Bvh`]'s `center`:
     /// the farthest corner along `n` gives `sum_k max(n_k lo_k, n_k hi_k)` with `lo`, `hi`
     /// relative to the anchor. Its rounding (the stored bounds are exact; the anchor's shift
     /// and `n` rounded to `f32`, and three products and sums, each within `2^-24`) stays
     /// below 8 units of `2^-24` of the same sizes, and the slack is 16: no box the exact
-    /// test keeps is refused. A box with an infinite bound (or one beyond `f32`'s range
-    /// relative to the anchor) makes the slack infinite and is kept.
-    pub fn some_leaf_in(&self, anchor: DVec3, planes: &[(DVec3, f64)]) -> bool {
-        let Some(root) = self.root else {
-            return false;
-        };
-        if root.count > 0 {
-            return true;
+    /// test keeps is left out. A box with an infinite bound (or one beyond `f32`'s range
+    /// relative to the anchor) makes the slack infinite and is listed.
+    pub fn list_region(
+        &self,
+        anchor: DVec3,
+        planes: &[(DVec3, f64)],
+        axis: DVec3,
+        out: &mut RegionList,
+    ) {
+        out.entries.clear();
+        (out.anchor, out.axis, out.root_leaf) = (anchor, axis, false);
+        match self.root {
+            None => return,
+            Some(root) if root.count > 0 => {
+                out.root_leaf = true;
+                return;
+            }
+            Some(_) => {}
         }
+        let a = anchor - self.center;
+        let size = anchor.abs().element_sum();
+        self.region_walk(anchor, planes, |index, n, mut leaves| {
+            let mut near = f64::INFINITY;
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (mut least, mut scale) = (0.0, size);
+                for k in 0..3 {
+                    let lo = f64::from(n.min()[k][slot]) - a[k];
+                    let hi = f64::from(n.max()[k][slot]) - a[k];
+                    least += (axis[k] * lo).min(axis[k] * hi);
+                    scale += lo.abs().max(hi.abs());
+                }
+                near = near.min(least - 1e-9 * scale);
+            }
+            out.entries.push((index, near));
+        });
+        out.entries.sort_by(|x, y| x.1.total_cmp(&y.1));
+    }
+
+    /// The walk of [`Self::list_region`]: `leaves(index, &node, mask)` for every node with
+    /// leaf slots whose boxes may meet the region (their mask).
+    fn region_walk(
+        &self,
+        anchor: DVec3,
+        planes: &[(DVec3, f64)],
+        mut leaves: impl FnMut(u32, &Node, i32),
+    ) {
+        let Some(root) = self.root else {
+            return;
+        };
         let a = anchor - self.center;
         let shift =
             REGION_SLACK * a.abs().element_sum() + ANCHOR_SLACK * anchor.abs().element_sum();
@@ -245,19 +291,24 @@ impl Bvh {
                     .move_mask();
             }
             let mut meets = !beyond & ((1 << WIDTH) - 1);
+            let mut leaf_slots = 0;
             while meets != 0 {
-                let child = n.child[meets.trailing_zeros() as usize];
+                let slot = meets.trailing_zeros() as usize;
                 meets &= meets - 1;
+                let child = n.child[slot];
                 if child.count == Child::EMPTY.count {
                     continue;
                 }
                 if child.count > 0 {
-                    return true;
+                    leaf_slots |= 1 << slot;
+                } else {
+                    stack.push(child.offset);
                 }
-                stack.push(child.offset);
+            }
+            if leaf_slots != 0 {
+                leaves(i, n, leaf_slots);
             }
         }
-        false
     }
 
     /// Visits, nearer boxes first, every primitive whose leaf box the ray meets within
@@ -299,14 +350,57 @@ impl Bvh {
     pub fn traverse_prefetching_in<const NEAREST_FIRST: bool>(
         &self,
         ray: &Ray,
-        (tmin, tmax): (f64, f64),
+        range: (f64, f64),
         prefetch_leaf: impl Fn(&[u32]),
         visit: impl FnMut(u32, f64) -> f64,
     ) -> usize {
-        // Also refuses NaN bounds.
         let Some(root) = self.root else {
             return 0;
         };
+        let walk = TreeWalk::<_, _, NEAREST_FIRST> {
+            root,
+            prefetch_leaf,
+            visit,
+        };
+        self.with_box_test(ray, range, walk)
+    }
+
+    /// [`Self::traverse`] for a ray within a region listed by [`Self::list_region`], over
+    /// the listed leaves instead of the tree: the leaves it meets within `[tmin, tmax]` are
+    /// among the listed ones, visited entry by entry (nearest first along the list's axis)
+    /// until the entries begin beyond `tmax`, each entry's leaves those the ray's box test
+    /// meets (the walk's test, on the listed node). The same primitives as the walk where
+    /// `visit` never lowers `tmax`, in another order; a nearest-hit query finds the same hit.
+    /// For a ray outside the region the answer is not the walk's.
+    pub fn traverse_listed(
+        &self,
+        ray: &Ray,
+        range: (f64, f64),
+        list: &RegionList,
+        visit: impl FnMut(u32, f64) -> f64,
+    ) -> usize {
+        if list.root_leaf {
+            return self.traverse_prefetching_in::<true>(ray, range, |_: &[u32]| {}, visit);
+        }
+        let d = ray.dir.length();
+        let walk = ListWalk {
+            list,
+            shift: list.axis.dot(ray.origin - list.anchor),
+            speed: d * (1.0 + 1e-12),
+            visit,
+        };
+        self.with_box_test(ray, range, walk)
+    }
+
+    /// Runs `walk` with the ray's box test (the `f32` test of its octant, the `f32` test
+    /// of a ray with a flat axis, or the `f64` one): 0 for a ray that meets nothing (no
+    /// tree, a NaN or empty range, a non-finite ray, a miss of the root's box).
+    #[inline]
+    fn with_box_test(&self, ray: &Ray, (tmin, tmax): (f64, f64), walk: impl Walk) -> usize {
+        // Also refuses NaN bounds.
+        if self.root.is_none() {
+            return 0;
+        }
         if tmin.is_nan() || tmax.is_nan() || tmin > tmax || !ray.origin.is_finite() {
             return 0;
         }
@@ -317,49 +411,24 @@ impl Bvh {
         if !slab.meets(&self.bounds, ray, tmax) {
             return 0;
         }
+        let range = (tmin, tmax);
         if let Some(fast) = Slabs32::<false>::new(&slab, tmin, &self.extent) {
             // The test of the ray's octant, whose near planes are known when compiled.
-            let range = (tmin, tmax);
-            // The walk with the box test of octant `k`.
-            macro_rules! octant {
-                ($k:literal) => {
-                    self.walk_in::<_, NEAREST_FIRST>(
-                        root,
-                        &Octant::<$k>(&fast),
-                        range,
-                        prefetch_leaf,
-                        visit,
-                    )
-                };
-            }
             match fast.octant() {
-                0 => octant!(0),
-                1 => octant!(1),
-                2 => octant!(2),
-                3 => octant!(3),
-                4 => octant!(4),
-                5 => octant!(5),
-                6 => octant!(6),
-                _ => octant!(7),
+                0 => walk.run(self, &Octant::<0>(&fast), range),
+                1 => walk.run(self, &Octant::<1>(&fast), range),
+                2 => walk.run(self, &Octant::<2>(&fast), range),
+                3 => walk.run(self, &Octant::<3>(&fast), range),
+                4 => walk.run(self, &Octant::<4>(&fast), range),
+                5 => walk.run(self, &Octant::<5>(&fast), range),
+                6 => walk.run(self, &Octant::<6>(&fast), range),
+                _ => walk.run(self, &Octant::<7>(&fast), range),
             }
         } else if let Some(fast) = Slabs32::<true>::new(&slab, tmin, &self.extent) {
-            self.walk::<_, NEAREST_FIRST>(root, &fast, tmin, tmax, prefetch_leaf, visit)
+            walk.run(self, &fast, range)
         } else {
-            self.walk::<_, NEAREST_FIRST>(root, &slab, tmin, tmax, prefetch_leaf, visit)
+            walk.run(self, &slab, range)
         }
-    }
-
-    /// [`Self::walk`] over the range `(tmin, tmax)`.
-    #[inline]
-    fn walk_in<B: BoxTest, const NEAREST_FIRST: bool>(
-        &self,
-        root: Child,
-        slab: &B,
-        (tmin, tmax): (f64, f64),
-        prefetch_leaf: impl Fn(&[u32]),
-        visit: impl FnMut(u32, f64) -> f64,
-    ) -> usize {
-        self.walk::<B, NEAREST_FIRST>(root, slab, tmin, tmax, prefetch_leaf, visit)
     }
 
     /// The traversal proper, with the box test `slab`; the children a ray enters nearest first
@@ -452,6 +521,95 @@ impl Bvh {
                 }
             }
         }
+    }
+}
+
+/// The leaves of a [`Bvh`] that may meet a region ([`Bvh::list_region`]): nodes with such
+/// leaf slots, each with a lower bound of `axis.(p - anchor)` over those leaves' boxes, in
+/// increasing order. Reused from region to region.
+#[derive(Clone, Debug, Default)]
+pub struct RegionList {
+    /// Node index and the lower bound.
+    entries: Vec<(u32, f64)>,
+    anchor: DVec3,
+    axis: DVec3,
+    /// The tree is one leaf (no node to list): rays walk it.
+    root_leaf: bool,
+}
+
+impl RegionList {
+    /// Whether no leaf may meet the region.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty() && !self.root_leaf
+    }
+}
+
+/// A walk to run with the ray's box test ([`Bvh::with_box_test`]), whichever it is.
+trait Walk {
+    /// The walk over `range` with the box test `slab`; returns the nodes tested where counting
+    /// is built in.
+    fn run<B: BoxTest>(self, bvh: &Bvh, slab: &B, range: (f64, f64)) -> usize;
+}
+
+/// [`Bvh::walk`] from `root`.
+struct TreeWalk<P, V, const NEAREST_FIRST: bool> {
+    root: Child,
+    prefetch_leaf: P,
+    visit: V,
+}
+
+impl<P: Fn(&[u32]), V: FnMut(u32, f64) -> f64, const NEAREST_FIRST: bool> Walk
+    for TreeWalk<P, V, NEAREST_FIRST>
+{
+    #[inline]
+    fn run<B: BoxTest>(self, bvh: &Bvh, slab: &B, (tmin, tmax): (f64, f64)) -> usize {
+        bvh.walk::<B, NEAREST_FIRST>(self.root, slab, tmin, tmax, self.prefetch_leaf, self.visit)
+    }
+}
+
+/// [`Bvh::traverse_listed`]'s walk over a [`RegionList`]. A point `p = o + t d` of the ray
+/// has `axis.(p - anchor) = axis.(o - anchor) + t axis.d <= shift + t |d|`, so an entry
+/// whose bound exceeds `shift + tmax |d|` (with `speed` = `|d|` rounded up) holds no box the
+/// ray enters before `tmax`, nor does any later one.
+struct ListWalk<'a, V> {
+    list: &'a RegionList,
+    shift: f64,
+    speed: f64,
+    visit: V,
+}
+
+impl<V: FnMut(u32, f64) -> f64> Walk for ListWalk<'_, V> {
+    fn run<B: BoxTest>(mut self, bvh: &Bvh, slab: &B, (tmin, mut tmax): (f64, f64)) -> usize {
+        let mut nodes = 0;
+        let mut limit = slab.limit(tmax);
+        for &(index, near) in &self.list.entries {
+            let reach = self.shift + tmax * self.speed;
+            if near - 1e-9 * (near.abs() + self.shift.abs()) > reach {
+                break;
+            }
+            let n = &bvh.nodes[index as usize];
+            if super::COUNTING {
+                nodes += 1;
+            }
+            let (entry, hit) = slab.entries(n, limit);
+            let mut h = hit;
+            while h != 0 {
+                let slot = h.trailing_zeros() as usize;
+                h &= h - 1;
+                let c = &n.child[slot];
+                if c.count == 0 || !(entry[slot] <= limit) {
+                    continue;
+                }
+                for &p in bvh.leaf_keys(c) {
+                    tmax = (self.visit)(p, tmax);
+                    if tmax.is_nan() || tmax < tmin {
+                        return nodes;
+                    }
+                }
+                limit = slab.limit(tmax);
+            }
+        }
+        nodes
     }
 }
 
@@ -974,7 +1132,7 @@ mod tests {
         Ray::new(o, 0.5 * (b.min + b.max) - o)
     }
 
-    /// `some_leaf_in` never refuses a region that holds a point of a primitive's box: pixel
+    /// `list_region` never leaves out a region that holds a point of a primitive's box: pixel
     /// frustums of random cameras (perspective, fields of view from 1e-4 to 170 degrees, and
     /// orthographic) about boxes of sizes 1e-3 to 1e4 at the origin and 1e4 away, checked
     /// against every box's corners and centre; a pixel whose corner ray runs exactly through
@@ -984,6 +1142,12 @@ mod tests {
     fn regions_keep_every_box_they_meet() {
         use crate::optics::{Camera, Projection};
         let mut rng = Rng::from_seed(41);
+        // Whether the region's list holds any leaf.
+        let listed = |bvh: &Bvh, eye: DVec3, planes: &[(DVec3, f64)]| {
+            let mut list = RegionList::default();
+            bvh.list_region(eye, planes, DVec3::X, &mut list);
+            !list.is_empty()
+        };
         let inside = |eye: DVec3, planes: &[(DVec3, f64)], p: DVec3| {
             planes.iter().all(|&(n, c)| n.dot(p - eye) >= c)
         };
@@ -1044,7 +1208,7 @@ mod tests {
                 let (cx, cy) = ((width / 2) as f64, (height / 2) as f64);
                 let f = rays.frustum([cx, cy], [cx + 1.0, cy + 1.0]);
                 assert!(
-                    bvh.some_leaf_in(f.eye(), f.planes()),
+                    listed(&bvh, f.eye(), f.planes()),
                     "the pixel at the centre misses its target: {cam:?}"
                 );
                 // Any pixel: never refused while it holds a box's point.
@@ -1054,7 +1218,7 @@ mod tests {
                 );
                 let (x, y) = (x as f64, y as f64);
                 let f = rays.frustum([x, y], [x + 1.0, y + 1.0]);
-                let answer = bvh.some_leaf_in(f.eye(), f.planes());
+                let answer = listed(&bvh, f.eye(), f.planes());
                 let holds = points.iter().any(|&p| inside(f.eye(), f.planes(), p));
                 assert!(
                     answer || !holds,
@@ -1070,11 +1234,110 @@ mod tests {
                     .map(|p| n.dot(*p - eye))
                     .fold(f64::MIN, f64::max);
                 let away = [(n, far + 1e-3 * scale + 1e-6 * (shift.x + 20.0 * scale))];
-                assert!(!bvh.some_leaf_in(eye, &away), "beyond every box: {n}");
+                assert!(!listed(&bvh, eye, &away), "beyond every box: {n}");
             }
         }
         assert!(met > 500 && missed > 500, "{met} met, {missed} missed");
-        assert!(!Bvh::build(&[]).some_leaf_in(DVec3::ZERO, &[]));
+        assert!(!listed(&Bvh::build(&[]), DVec3::ZERO, &[]));
+    }
+
+    /// A ray within its pixel's frustum finds over the frustum's list what it finds walking
+    /// the tree: with boxes as primitives (a visit is the exact entry into the box, `f64`
+    /// slabs), the nearest box and its entry (ties to the lower key), and the same set of
+    /// boxes where nothing lowers `tmax`; rays through the pixel's corners, edges and inside,
+    /// perspective and orthographic cameras, one-leaf trees too.
+    #[test]
+    fn listed_walks_find_what_tree_walks_find() {
+        use crate::optics::{Camera, Projection};
+        let mut rng = Rng::from_seed(43);
+        let (mut hits, mut listed) = (0, 0);
+        for case in 0..60 {
+            let n = if case % 10 == 0 { 1 } else { 2000 };
+            let boxes = scattered_boxes(&mut rng, n, 0.3);
+            let bvh = Bvh::build(&boxes);
+            // The exact entry of the ray into box `p`, if it meets it within `[0, inf)`.
+            let entry = |ray: &Ray, p: u32| {
+                let b = &boxes[p as usize];
+                let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+                for k in 0..3 {
+                    let (o, d) = (ray.origin[k], ray.dir[k]);
+                    let (a, z) = ((b.min[k] - o) / d, (b.max[k] - o) / d);
+                    t0 = t0.max(a.min(z));
+                    t1 = t1.min(a.max(z));
+                }
+                (t0 <= t1).then_some(t0)
+            };
+            let target = 0.5 * (boxes[0].min + boxes[0].max);
+            let cam = Camera {
+                position: rng.in_box(DVec3::splat(-5.0), DVec3::splat(15.0)),
+                look_at: target,
+                up: rng.unit_vector(),
+                projection: if case % 3 == 0 {
+                    Projection::Orthographic { height: 4.0 }
+                } else {
+                    Projection::Perspective { fov: 40.0 }
+                },
+                width: 16,
+                height: 12,
+            };
+            if cam.validate().is_err() {
+                continue;
+            }
+            let rays = cam.rays();
+            let mut list = RegionList::default();
+            for (x, y) in [(8.0, 6.0), (0.0, 0.0), (15.0, 11.0), (3.0, 9.0), (8.0, 5.0)] {
+                let f = rays.frustum([x, y], [x + 1.0, y + 1.0]);
+                bvh.list_region(f.eye(), f.planes(), f.axis(), &mut list);
+                listed += list.entries.len();
+                for (dx, dy) in [(0.0, 0.0), (1.0, 1.0), (0.5, 0.0), (1.0, 0.3), (0.7, 0.2)] {
+                    let ray = rays.ray(x + dx, y + dy);
+                    let nearest = |listed: bool| {
+                        let mut best: Option<(f64, u32)> = None;
+                        let visit = |p: u32, tmax: f64| {
+                            if let Some(t) = entry(&ray, p).filter(|&t| t <= tmax)
+                                && best.is_none_or(|b| (t, p) < b)
+                            {
+                                best = Some((t, p));
+                            }
+                            best.map_or(tmax, |b| b.0)
+                        };
+                        if listed {
+                            bvh.traverse_listed(&ray, (0.0, f64::INFINITY), &list, visit);
+                        } else {
+                            bvh.traverse(&ray, 0.0, f64::INFINITY, visit);
+                        }
+                        best
+                    };
+                    let want = nearest(false);
+                    assert_eq!(
+                        nearest(true),
+                        want,
+                        "case {case} pixel ({x}, {y}) + ({dx}, {dy})"
+                    );
+                    hits += usize::from(want.is_some());
+                    // Everything met, nothing cut short: the same boxes.
+                    let met = |listed: bool| {
+                        let mut all = vec![];
+                        let visit = |p: u32, tmax: f64| {
+                            if entry(&ray, p).is_some() {
+                                all.push(p);
+                            }
+                            tmax
+                        };
+                        if listed {
+                            bvh.traverse_listed(&ray, (0.0, f64::INFINITY), &list, visit);
+                        } else {
+                            bvh.traverse(&ray, 0.0, f64::INFINITY, visit);
+                        }
+                        all.sort_unstable();
+                        all.dedup();
+                        all
+                    };
+                    assert_eq!(met(true), met(false), "case {case} pixel ({x}, {y})");
+                }
+            }
+        }
+        assert!(hits > 500 && listed > 1000, "{hits} hits, {listed} listed");
     }
 
     /// The primitives `traverse` visits on `ray` over `[0, inf)`, in order, nothing cut short.
