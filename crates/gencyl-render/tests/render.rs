@@ -162,27 +162,43 @@ fn pixel_frustums_change_no_pixel() {
                    [material.m]\ntype = \"hair\"\nmelanin = 1\n\
                    [environment]\ncolor = 0.5\n\
                    [[light]]\ntype = \"directional\"\ndirection = [0, -1, -1]\nirradiance = 2\n";
+    // And a fringe of thin strands below them, so that some pixels meet many BVH nodes.
+    let fringe: String = (0..60)
+        .map(|i| {
+            let (x, z) = (-1.5 + 0.05 * i as f64, 0.02 * (i % 7) as f64);
+            format!(
+                "[[strand]]\npoints = [[{x}, -1.2, {z}], [{}, -1.6, {}], [{x}, -2, {z}]]\n\
+                 radius = [0.01, 0.005]\nmaterial = \"m\"\n",
+                x + 0.1,
+                z - 0.1
+            )
+        })
+        .collect();
+    let strands = format!("{strands}{fringe}");
     let cameras = [
         "position = [0, 0, 5]\nlook_at = [0, -0.3, 0]\nfov = 40\nresolution = [24, 18]",
         "position = [0.3, 1, 40]\nlook_at = [0, 0, 0]\nfov = 5\nresolution = [20, 20]",
         "type = \"orthographic\"\nposition = [0, 0, 5]\nlook_at = [0, -0.3, 0]\n\
          view_height = 3\nresolution = [16, 16]",
     ];
-    let (mut empty, mut seen) = (0, 0);
+    let (mut empty, mut listed, mut whole) = (0, 0, 0);
     for camera in cameras {
         let (w, cam) = world(&format!("{strands}[camera]\n{camera}\n"));
         let rays = cam.rays();
-        for integ in [Integrator::Path, Integrator::Normals] {
-            let s = settings(integ, 4);
+        // Lists of up to 4 and 16 nodes (spp / 2).
+        for (integ, spp) in [(Integrator::Path, 8), (Integrator::Normals, 32)] {
+            let s = settings(integ, spp);
             let mut buf = Buffers::default();
             for y in 0..cam.height {
                 for x in 0..cam.width {
                     let (fx, fy) = (x as f64, y as f64);
+                    // As the pixel lists them: empty, walked as listed, or walked as the tree.
                     let mut list = RegionList::default();
-                    w.list_fibers(&rays.frustum([fx, fy], [fx + 1.0, fy + 1.0]), &mut list);
-                    let fibers = !list.is_empty();
-                    empty += usize::from(!fibers);
-                    seen += usize::from(fibers);
+                    let frustum = rays.frustum([fx, fy], [fx + 1.0, fy + 1.0]);
+                    w.list_fibers(&frustum, spp as usize / 2, &mut list);
+                    empty += usize::from(list.is_empty());
+                    listed += usize::from(list.nodes() > 0);
+                    whole += usize::from(!list.is_empty() && list.nodes() == 0);
                     let (v, dropped) = integrator::pixel(&w, &rays, &s, x, y, &mut buf);
                     assert_eq!(dropped, 0);
                     let mut sum = [0.0; 5];
@@ -207,7 +223,10 @@ fn pixel_frustums_change_no_pixel() {
             }
         }
     }
-    assert!(empty > 200 && seen > 50, "{empty} empty, {seen} seen");
+    assert!(
+        empty > 200 && listed > 50 && whole > 20,
+        "{empty} empty, {listed} listed, {whole} walked whole"
+    );
 }
 
 /// One camera ray's mean radiance over `n` samples, and the standard error.

@@ -346,7 +346,10 @@ pub fn render(
 
 /// Pixels of at least this many samples list first the fibers' BVH leaves their frustum may
 /// meet ([`World::list_fibers`]; X-ray's crossings do not); fewer samples would not repay the
-/// walk.
+/// walk. The list holds at most `spp / 2` nodes (beyond, the pixel's rays walk the tree): on
+/// the path-traced ponytail (callgrind, one thread) a cap of 8, 16 or 32 nodes took 1.3%, 0.5%
+/// and -0.8% off a 128x128 render at 16 samples and 7.5%, 8.1% and 9.1% off a band of the
+/// 512x512 one at 64 samples; asking only whether the list is empty, 1.7% and 5.1%.
 const FRUSTUM_SAMPLES: u32 = 4;
 
 /// The value of pixel `(x, y)`: the mean of its finite samples (`Z`: their minimum), and the
@@ -370,7 +373,8 @@ pub fn pixel(
     let fibers = if settings.spp < FRUSTUM_SAMPLES || settings.integrator == Integrator::Xray {
         Fibers::All
     } else {
-        world.list_fibers(&camera.frustum([fx, fy], [fx + 1.0, fy + 1.0]), &mut region);
+        let frustum = camera.frustum([fx, fy], [fx + 1.0, fy + 1.0]);
+        world.list_fibers(&frustum, (settings.spp / 2) as usize, &mut region);
         if region.is_empty() {
             Fibers::None
         } else {

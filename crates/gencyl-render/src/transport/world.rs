@@ -180,10 +180,11 @@ impl World {
     }
 
     /// The leaves of the fibers' BVH that may meet `frustum`, into `out`
-    /// ([`crate::accel::Bvh::list_region`]): empty where no ray within it can hit a fiber.
-    pub fn list_fibers(&self, frustum: &Frustum, out: &mut RegionList) {
+    /// ([`crate::accel::Bvh::list_region`], in at most `limit` nodes, else marked whole):
+    /// empty where no ray within it can hit a fiber.
+    pub fn list_fibers(&self, frustum: &Frustum, limit: usize, out: &mut RegionList) {
         let bvh = self.scene.bvh();
-        bvh.list_region(frustum.eye(), frustum.planes(), frustum.axis(), out);
+        bvh.list_region(frustum.eye(), frustum.planes(), frustum.axis(), limit, out);
     }
 
     /// [`World::intersect`] with the fibers a ray may meet: all of them, none (a ray within

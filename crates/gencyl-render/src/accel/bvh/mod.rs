@@ -195,7 +195,9 @@ impl Bvh {
     /// each node's entry with the least of `axis.(p - anchor)` over its listed boxes (`axis` a
     /// unit vector; rounded down by `1e-9` of the sizes involved), sorted by it: what rays
     /// within the region walk instead of the tree ([`Self::traverse_listed`]). A tree of one
-    /// leaf is listed whole, an empty one not at all.
+    /// leaf is listed whole, an empty one not at all, and a region that meets leaves in more
+    /// than `limit` nodes is marked whole too once that many are found (its rays walk the
+    /// tree: a long list costs a ray that misses more than the walk).
     ///
     /// A leaf is left out only if its box (or a box above it) lies beyond some plane by more
     /// than [`REGION_SLACK`] times `|p - anchor|_1 + |c| + |anchor - center|_1` at its farthest
@@ -215,14 +217,15 @@ impl Bvh {
         anchor: DVec3,
         planes: &[(DVec3, f64)],
         axis: DVec3,
+        limit: usize,
         out: &mut RegionList,
     ) {
         out.entries.clear();
-        (out.anchor, out.axis, out.root_leaf) = (anchor, axis, false);
+        (out.anchor, out.axis, out.whole) = (anchor, axis, false);
         match self.root {
             None => return,
             Some(root) if root.count > 0 => {
-                out.root_leaf = true;
+                out.whole = true;
                 return;
             }
             Some(_) => {}
@@ -244,17 +247,22 @@ impl Bvh {
                 near = near.min(least - 1e-9 * scale);
             }
             out.entries.push((index, near));
+            out.entries.len() > limit
         });
+        if out.entries.len() > limit {
+            out.entries.clear();
+            out.whole = true;
+        }
         out.entries.sort_by(|x, y| x.1.total_cmp(&y.1));
     }
 
     /// The walk of [`Self::list_region`]: `leaves(index, &node, mask)` for every node with
-    /// leaf slots whose boxes may meet the region (their mask).
+    /// leaf slots whose boxes may meet the region (their mask), until it returns `true`.
     fn region_walk(
         &self,
         anchor: DVec3,
         planes: &[(DVec3, f64)],
-        mut leaves: impl FnMut(u32, &Node, i32),
+        mut leaves: impl FnMut(u32, &Node, i32) -> bool,
     ) {
         let Some(root) = self.root else {
             return;
@@ -305,8 +313,8 @@ impl Bvh {
                     stack.push(child.offset);
                 }
             }
-            if leaf_slots != 0 {
-                leaves(i, n, leaf_slots);
+            if leaf_slots != 0 && leaves(i, n, leaf_slots) {
+                return;
             }
         }
     }
@@ -379,7 +387,7 @@ impl Bvh {
         list: &RegionList,
         visit: impl FnMut(u32, f64) -> f64,
     ) -> usize {
-        if list.root_leaf {
+        if list.whole {
             return self.traverse_prefetching_in::<true>(ray, range, |_: &[u32]| {}, visit);
         }
         let d = ray.dir.length();
@@ -533,14 +541,19 @@ pub struct RegionList {
     entries: Vec<(u32, f64)>,
     anchor: DVec3,
     axis: DVec3,
-    /// The tree is one leaf (no node to list): rays walk it.
-    root_leaf: bool,
+    /// Rays walk the tree: it is one leaf (no node to list), or the region meets too many.
+    whole: bool,
 }
 
 impl RegionList {
     /// Whether no leaf may meet the region.
     pub fn is_empty(&self) -> bool {
-        self.entries.is_empty() && !self.root_leaf
+        self.entries.is_empty() && !self.whole
+    }
+
+    /// The nodes listed (0 where rays walk the tree whole, or nothing is listed).
+    pub fn nodes(&self) -> usize {
+        self.entries.len()
     }
 }
 
@@ -1145,7 +1158,7 @@ mod tests {
         // Whether the region's list holds any leaf.
         let listed = |bvh: &Bvh, eye: DVec3, planes: &[(DVec3, f64)]| {
             let mut list = RegionList::default();
-            bvh.list_region(eye, planes, DVec3::X, &mut list);
+            bvh.list_region(eye, planes, DVec3::X, usize::MAX, &mut list);
             !list.is_empty()
         };
         let inside = |eye: DVec3, planes: &[(DVec3, f64)], p: DVec3| {
@@ -1245,7 +1258,8 @@ mod tests {
     /// the tree: with boxes as primitives (a visit is the exact entry into the box, `f64`
     /// slabs), the nearest box and its entry (ties to the lower key), and the same set of
     /// boxes where nothing lowers `tmax`; rays through the pixel's corners, edges and inside,
-    /// perspective and orthographic cameras, one-leaf trees too.
+    /// perspective and orthographic cameras, one-leaf trees too, and lists cut short at three
+    /// nodes (then walked as the tree).
     #[test]
     fn listed_walks_find_what_tree_walks_find() {
         use crate::optics::{Camera, Projection};
@@ -1287,7 +1301,8 @@ mod tests {
             let mut list = RegionList::default();
             for (x, y) in [(8.0, 6.0), (0.0, 0.0), (15.0, 11.0), (3.0, 9.0), (8.0, 5.0)] {
                 let f = rays.frustum([x, y], [x + 1.0, y + 1.0]);
-                bvh.list_region(f.eye(), f.planes(), f.axis(), &mut list);
+                let limit = [usize::MAX, 3][(x as usize) % 2];
+                bvh.list_region(f.eye(), f.planes(), f.axis(), limit, &mut list);
                 listed += list.entries.len();
                 for (dx, dy) in [(0.0, 0.0), (1.0, 1.0), (0.5, 0.0), (1.0, 0.3), (0.7, 0.2)] {
                     let ray = rays.ray(x + dx, y + dy);
