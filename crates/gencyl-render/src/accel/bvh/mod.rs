@@ -191,7 +191,8 @@ impl Bvh {
     }
 
     /// The leaves whose boxes may meet the convex region of the points `p` with
-    /// `n.(p - anchor) >= c` for every plane `(n, c)` (`n` unit), into `out`, node by node,
+    /// `n.(p - anchor) >= c` for every plane `(n, c)` (`n` unit; the first eight, a larger
+    /// region, where more are given), into `out`, node by node,
     /// each node's entry with the least of `axis.(p - anchor)` over its listed boxes (`axis` a
     /// unit vector; rounded down by `1e-9` of the sizes involved), sorted by it: what rays
     /// within the region walk instead of the tree ([`Self::traverse_listed`]). A tree of one
@@ -374,12 +375,14 @@ impl Bvh {
     }
 
     /// [`Self::traverse`] for a ray within a region listed by [`Self::list_region`], over
-    /// the listed leaves instead of the tree: the leaves it meets within `[tmin, tmax]` are
-    /// among the listed ones, visited entry by entry (nearest first along the list's axis)
-    /// until the entries begin beyond `tmax`, each entry's leaves those the ray's box test
-    /// meets (the walk's test, on the listed node). The same primitives as the walk where
-    /// `visit` never lowers `tmax`, in another order; a nearest-hit query finds the same hit.
-    /// For a ray outside the region the answer is not the walk's.
+    /// the listed leaves instead of the tree: every leaf whose box the ray meets within
+    /// `[tmin, tmax]` is among the listed ones, visited entry by entry (nearest first along
+    /// the list's axis) until the entries begin beyond `tmax`, each entry's leaves those the
+    /// ray's box test meets (the walk's test, on the listed node). Where `visit` never lowers
+    /// `tmax` it sees every primitive whose box the ray meets, as the walk does (whose
+    /// rounded test may add a few boxes outside the region, which the ray does not meet), in
+    /// another order; a nearest-hit query finds the same hit. For a ray outside the region the
+    /// answer is not the walk's.
     pub fn traverse_listed(
         &self,
         ray: &Ray,
