@@ -3,6 +3,8 @@
 use gencyl::Ray;
 use glam::DVec3;
 
+use crate::accel::Frustum;
+
 /// How the camera projects the scene onto the image.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Projection {
@@ -165,59 +167,13 @@ impl CameraRays {
     /// s_y0`, `w.(p - eye) >= 0`.
     pub fn frustum(&self, [x0, y0]: [f64; 2], [x1, y1]: [f64; 2]) -> Frustum {
         let eye = self.camera.position;
-        let (u, v, w) = (self.u, self.v, self.w);
+        let basis = [self.u, self.v, self.w];
         let (sx0, sy0) = self.image_plane(x0, y0);
         let (sx1, sy1) = self.image_plane(x1, y1);
-        let planes = match self.camera.projection {
-            Projection::Perspective { .. } => {
-                let e = |sx: f64, sy: f64| w + sx * u + sy * v;
-                let corners = [e(sx0, sy0), e(sx1, sy0), e(sx1, sy1), e(sx0, sy1)];
-                let centre = e(0.5 * (sx0 + sx1), 0.5 * (sy0 + sy1));
-                // Adjacent corners differ along u or v: the normal is `e_i x u` or `e_i x v`,
-                // without the cancellation of `e_i x e_j` for a small pixel.
-                let edges = [u, v, u, v];
-                let side = |i: usize| {
-                    let n = corners[i].cross(edges[i]).normalize_or_zero();
-                    (if n.dot(centre) < 0.0 { -n } else { n }, 0.0)
-                };
-                [side(0), side(1), side(2), side(3), (w, 0.0)]
-            }
-            Projection::Orthographic { .. } => {
-                [(u, sx0), (-u, -sx1), (v, sy1), (-v, -sy0), (w, 0.0)]
-            }
-        };
-        Frustum {
-            eye,
-            axis: w,
-            planes,
+        match self.camera.projection {
+            Projection::Perspective { .. } => Frustum::pyramid(eye, basis, [sx0, sx1], [sy1, sy0]),
+            Projection::Orthographic { .. } => Frustum::prism(eye, basis, [sx0, sx1], [sy1, sy0]),
         }
-    }
-}
-
-/// The region a bundle of camera rays sweeps ([`CameraRays::frustum`]): the points `p` with
-/// `n.(p - eye) >= c` for each plane `(n, c)` (`n` unit).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Frustum {
-    eye: DVec3,
-    /// The camera's view direction (unit).
-    axis: DVec3,
-    planes: [(DVec3, f64); 5],
-}
-
-impl Frustum {
-    /// The point the planes are taken relative to: the camera's position.
-    pub fn eye(&self) -> DVec3 {
-        self.eye
-    }
-
-    /// The camera's view direction `w` (unit).
-    pub fn axis(&self) -> DVec3 {
-        self.axis
-    }
-
-    /// The planes `(n, c)`: the region is `n.(p - eye) >= c` for each.
-    pub fn planes(&self) -> &[(DVec3, f64)] {
-        &self.planes
     }
 }
 

@@ -4,10 +4,8 @@
 use gencyl::{Aabb, Frame, GeneralizedCylinder, Part, Ray, Section};
 use glam::DVec3;
 
-use crate::accel::RegionList;
 use crate::accel::shapes::{Plane, Sphere};
-use crate::accel::{Leaving, Scene, SceneHit, Scratch};
-use crate::optics::camera::Frustum;
+use crate::accel::{Frustum, Leaving, RegionList, Scene, SceneHit, Scratch};
 use crate::optics::light::{Environment, Light};
 use crate::optics::material::{Material, SceneMaterial, SectionAt, ShadingPoint};
 use crate::scene_file::SceneDescription;
