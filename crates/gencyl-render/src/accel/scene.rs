@@ -230,7 +230,8 @@ impl Scene {
     /// `exact(object, cylinder, tmax)` (at most once per query), which returns the new `tmax`
     /// as [`Bvh::traverse`]'s closure does: nearer boxes first where `NEAREST_FIRST` (a
     /// nearest-hit query, whose `tmax` shrinks with each hit), in the tree's order otherwise
-    /// ([`Bvh::traverse_prefetching_in`]: all hits, any hit).
+    /// ([`Bvh::traverse_prefetching_in`]: all hits, any hit). With `list`, the walk is over the
+    /// listed leaves of a region the ray lies in ([`Bvh::traverse_listed`]).
     ///
     /// `leaving`: the cylinder the ray leaves, its origin on that cylinder's surface (a ray a
     /// renderer spawns from a hit). The cull cannot clear a piece the origin lies within reach
@@ -352,9 +353,7 @@ impl Scene {
         self.nearest(ray, range, None, Some(list), scratch, exits_stop)
     }
 
-    /// [`Self::nearest_hit_where`] over the tree, or over `list` where given (inlined into
-    /// each, so that the tree's walk does not test for a list).
-    #[inline(always)]
+    /// [`Self::nearest_hit_where`] over the tree, or over `list` where given.
     fn nearest(
         &self,
         ray: &Ray,

@@ -159,12 +159,9 @@ impl CameraRays {
     }
 
     /// The region the rays through the image square `[x0, x1] x [y0, y1]` (pixels) sweep
-    /// for `t >= 0`: for a perspective camera the cone from the eye over the square's four
-    /// corner directions `e = w + s_x u + s_y v` (bounded by the planes through the eye and
-    /// two adjacent corners, normals `e_i x u` or `e_i x v` along the square's edge, turned
-    /// toward the square's centre), for an
-    /// orthographic one the half-prism `s_x0 <= u.(p - eye) <= s_x1`, `s_y1 <= v.(p - eye) <=
-    /// s_y0`, `w.(p - eye) >= 0`.
+    /// for `t >= 0`: for a perspective camera the cone from the eye over the directions
+    /// `w + s_x u + s_y v` of the square ([`Frustum::pyramid`]), for an orthographic one the
+    /// half-prism of the rays from `eye + s_x u + s_y v` ([`Frustum::prism`]).
     pub fn frustum(&self, [x0, y0]: [f64; 2], [x1, y1]: [f64; 2]) -> Frustum {
         let eye = self.camera.position;
         let basis = [self.u, self.v, self.w];
