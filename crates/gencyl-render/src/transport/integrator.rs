@@ -347,9 +347,10 @@ pub fn render(
 /// Pixels of at least this many samples list first the fibers' BVH leaves their frustum may
 /// meet ([`World::list_fibers`]; X-ray's crossings do not); fewer samples would not repay the
 /// walk. The list holds at most `spp / 2` nodes (beyond, the pixel's rays walk the tree): on
-/// the path-traced ponytail (callgrind, one thread) a cap of 8, 16 or 32 nodes took 1.3%, 0.5%
-/// and -0.8% off a 128x128 render at 16 samples and 7.5%, 8.1% and 9.1% off a band of the
-/// 512x512 one at 64 samples; asking only whether the list is empty, 1.7% and 5.1%.
+/// the path-traced ponytail a cap of 8, 16 or 32 nodes changed the instructions (callgrind,
+/// one thread) of a 128x128 render at 16 samples by -1.3%, -0.5% and +0.8%, and of a band of
+/// the 512x512 one at 64 samples by -7.5%, -8.1% and -9.1%; asking only whether the list is
+/// empty, by -1.7% and -5.1%.
 const FRUSTUM_SAMPLES: u32 = 4;
 
 /// The value of pixel `(x, y)`: the mean of its finite samples (`Z`: their minimum), and the
