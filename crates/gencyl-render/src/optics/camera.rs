@@ -188,7 +188,8 @@ mod tests {
         let mut rng = crate::sampling::SampleRng::from_seed(5);
         // The least over the planes of `(n.(p - eye) - c + point) / size`: `size` the scale of
         // the rounding of the planes and directions, `point` that of the point itself.
-        let value = |f: &Frustum, p: DVec3, point: f64| {
+        let value = |f: &Frustum, p: DVec3| {
+            let point = 100.0 * f64::EPSILON * p.abs().element_sum();
             f.planes()
                 .iter()
                 .map(|&(n, c)| {
@@ -197,7 +198,6 @@ mod tests {
                 })
                 .fold(f64::INFINITY, f64::min)
         };
-        let rounding = |p: DVec3| 100.0 * f64::EPSILON * p.abs().element_sum();
         let mut outside = 0;
         for case in 0..400 {
             let far = if case % 2 == 0 { 0.0 } else { 1e4 };
@@ -234,7 +234,7 @@ mod tests {
                     let ray = rays.ray(x + dx, y + dy);
                     for e in -6..=6 {
                         let p = ray.at(view.length() * 10.0f64.powi(e));
-                        let v = value(&f, p, rounding(p));
+                        let v = value(&f, p);
                         assert!(
                             v >= -1e-12,
                             "{cam:?} pixel ({x}, {y}) + ({dx}, {dy}): {v:e}"
