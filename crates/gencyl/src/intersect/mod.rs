@@ -23,6 +23,7 @@
 
 mod branches;
 mod curve_curve;
+mod inside;
 mod prefilter;
 mod prism;
 mod profile;
@@ -286,8 +287,13 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// lie inside `(tmin, tmax)` answers unpolished, where the surface cannot fold (else the
     /// crossing may lie inside the solid) and, when `entering`, only on a tube of constant
     /// radius and the `-` branch (where the ball's entry is the tube's: see
-    /// [`Self::intersect_first_entering_with`]).
+    /// [`Self::intersect_first_entering_with`]). Before any search, a round fiber that the ray
+    /// certainly enters, from a point outside it to one inside, answers at once
+    /// ([`inside`]: a few hundred instructions against a few thousand).
     pub fn any_hit(&self, ray: &Ray, tmin: f64, tmax: f64, entering: bool) -> bool {
+        if inside::certain_entry(self, ray, tmin, tmax).is_some() {
+            return true;
+        }
         let mut found = false;
         let certain = self.each_hit(ray, tmin, tmax, Method::Auto, entering, true, true, |h| {
             found = !entering || h.normal.dot(ray.dir) <= 0.0;
@@ -1574,6 +1580,40 @@ mod tests {
         };
         let ray = Ray::new(o, d);
         (cyl, ray, r)
+    }
+
+    /// A known miss, ignored until it is fixed: a ray exactly parallel to a straight tapered
+    /// fiber's axis, beyond the radius at the thin end and within it at the thick one, enters
+    /// the side where the radius reaches its distance from the axis. There the crossing lies
+    /// where `D = 0` (the ray touches the sphere about `a(u)`), which the Round method's
+    /// polish does not certify, and the entry is dropped; a direction 1e-9 off parallel is
+    /// found. Found by the any-hit certificate's test (`inside`), whose `contains` checks
+    /// see the ray inside.
+    #[test]
+    #[ignore = "known miss: rays exactly parallel to a straight tapered axis (README, Not yet)"]
+    fn rays_parallel_to_a_straight_tapered_axis_enter_its_side() {
+        for offset in [0.0, 1e4] {
+            for across in [1.0000117, 1.0001, 1.001, 1.01, 1.1, 1.5] {
+                let o = DVec3::splat(offset);
+                let bezier = [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0].map(|x| o + v3(x, 0.0, 0.0));
+                let (k0, k1) = (0.0016816246202809558, 0.0028780716374299108);
+                let mut spec = FiberSpec::round(bezier, k0);
+                spec.major_radius = [k0, k1];
+                spec.minor_radius = spec.major_radius;
+                let cyl = spec.build().unwrap();
+                let n = v3(0.0, 0.98, 0.19).normalize();
+                let ray = Ray::new(o + v3(-0.7, 0.0, 0.0) + across * k0 * n, v3(3.3, 0.0, 0.0));
+                let u = (across - 1.0) * k0 / (k1 - k0);
+                let mut all = Vec::new();
+                cyl.intersect_all(&ray, 0.0, f64::INFINITY, &mut all);
+                assert!(
+                    all.iter().any(|h| h.part == Part::Side
+                        && (h.u - u).abs() < 1e-6
+                        && h.normal.x < 0.0),
+                    "offset {offset}, across {across}: no side entry at u = {u}: {all:?}"
+                );
+            }
+        }
     }
 
     /// `intersect_first_entering_with` gives the first entry (`normal . d <= 0`) of the full

@@ -390,7 +390,8 @@ impl Product {
             }
             if c.0.iter().any(|x| x.abs() <= self.err) {
                 // A coefficient whose sign rounding may flip: a narrower cell may settle it.
-                if s1 - s0 < 1e-6 || stack.is_full() {
+                // A split takes the popped cell's slot and one more.
+                if s1 - s0 < 1e-6 || stack.remaining_capacity() < 2 {
                     return None;
                 }
             } else {
@@ -405,7 +406,7 @@ impl Product {
                         continue;
                     }
                 }
-                if stack.is_full() {
+                if stack.remaining_capacity() < 2 {
                     return None;
                 }
             }
