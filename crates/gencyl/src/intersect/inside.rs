@@ -428,12 +428,9 @@ mod tests {
     fn certified_entries_are_entries() {
         let mut rng = Rng(91);
         let (mut certified, mut core, mut core_certified, mut open_ends) = (0, 0, 0, 0);
-        let mut parallel_side = 0;
         let mut by_aim = std::collections::HashMap::new();
         for case in 0..40_000 {
             let (cyl, k, ray, (tmin, tmax), aim, across, t_aim) = case_of(&mut rng, case);
-            let chord = cyl.axis().points[3] - cyl.axis().points[0];
-            let parallel = aim == Aim::ThroughEnd && ray.dir.cross(chord) == DVec3::ZERO;
             let found = certain_entry(&cyl, &ray, tmin, tmax);
             let mut all: Vec<Hit> = Vec::new();
             cyl.intersect_all(&ray, tmin, tmax, &mut all);
@@ -459,14 +456,6 @@ mod tests {
                     "case {case}: inside at tmin {tmin}"
                 );
                 assert!(cyl.contains(ray.at(t)), "case {case}: not inside at {t}");
-                // A ray exactly parallel to a straight tapered axis that enters the side: the
-                // full search misses that entry (a known miss of the Round method,
-                // `intersect::tests::rays_parallel_to_a_straight_tapered_axis_enter_its_side`);
-                // the solid's definition above is the check there.
-                if parallel && across > 1.0 {
-                    parallel_side += 1;
-                    continue;
-                }
                 assert!(
                     all.iter().any(|h| h.t <= t && h.normal.dot(d) <= 0.0),
                     "case {case}: no entry in ({tmin}, {t}]: {all:?}"
@@ -491,7 +480,6 @@ mod tests {
             "core rays certified: {core_certified} of {core}"
         );
         assert!(certified > 8000, "certified: {certified} ({by_aim:?})");
-        assert!(parallel_side < certified / 50, "parallel: {parallel_side}");
         for aim in [
             "Perpendicular",
             "NearlyPerpendicular",

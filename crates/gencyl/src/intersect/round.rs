@@ -819,6 +819,10 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     }) {
         return;
     }
+    if let Some(s) = level_crossing(cyl, o, d, (u0, u1), &k) {
+        push_all(cyl, d, &k, (u0, u1), len, &s, out);
+        return;
+    }
     let mut cells = ArrayVec::new();
     if cyl.may_fold() || tube_cells(&k, &mut cells).is_none() {
         cells.clear();
@@ -846,6 +850,92 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
         found = stretch_roots(&k, 0.0, 1.0);
     }
     push_all(cyl, d, &k, (u0, u1), len, &found, out);
+}
+
+/// The side crossings of a range where `P = X X' + Y Y'` is so small that every crossing has
+/// `D` below its rounding bound (the axis keeps its distance from the ray: a ray parallel, or
+/// parallel but for the rounding of the inputs, to a straight axis) and the radius varies, as
+/// `(s, sign)`; `None` where that is not the case, or the answer is not certified (the other
+/// methods then decide).
+///
+/// There `H± = -P ± Z' sqrt(D)` vanish (exactly parallel) or nearly vanish wherever `D <= 0`,
+/// and the branch functions certify nothing; but `G = P^2 - Z'^2 D = 0` puts every crossing
+/// where `0 <= D <= (p / z)^2` (`p` a bound of the true `|P|`, its coefficients' and their
+/// rounding's, and `z` the least `|Z'|`), and `D' = 2 r r' - 2 P` keeps the sign of `r'` where
+/// `|r r'|` exceeds `p` by far: `D` is monotone, and every crossing lies at its root `s*`, to
+/// within `D`'s own resolution. A crossing is certain where the normal-plane function
+/// `f(u) = |x(u) - a(u)|^2 - r(u)^2` (`x(u)` the ray's point in the normal plane at `u`, on a
+/// range oblique to the ray) changes sign about `s*` beyond its rounding: then the range has
+/// exactly one crossing, at `s*`. (On a ray exactly parallel to a straight tapered axis the
+/// branch method found none.)
+fn level_crossing<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+    (u0, u1): (f64, f64),
+    k: &Polys,
+) -> Option<ArrayVec<(f64, f64), 16>> {
+    let [r0, r1] = k.radius;
+    if r0 == r1 {
+        return None;
+    }
+    let (p_lo, p_hi) = k.p.range();
+    let p_bound = 2.0 * k.err_p + p_lo.abs().max(p_hi.abs());
+    let (ra, rb) = (r0.abs().min(r1.abs()), r0.abs().max(r1.abs()));
+    // `|r r'|` on the range (`r' = r1 - r0` per unit of `s`) far above `P`'s bound, and `P`
+    // within its rounding: its coefficients no larger than the bound itself.
+    let (z_lo, z_hi) = k.z_s.range();
+    let z_min = if z_lo > 0.0 { z_lo } else { -z_hi } - k.err_z;
+    // Every crossing has `D = P^2 / Z'^2 <= (p_bound / z_min)^2`: below `D`'s own rounding
+    // level (the branch method cannot certify it), and `|r r'|` far above `P`'s bound.
+    let level = p_bound / z_min;
+    if !(z_min > 0.0 && level * level <= 16.0 * k.err_disc && ra * (r1 - r0).abs() > 1e6 * p_bound)
+    {
+        return None;
+    }
+    cyl.obliquity(d, u0, u1)?;
+    let (d0, d1) = (k.disc.eval(0.0), k.disc.eval(1.0));
+    if !(d0.abs() > k.err_disc && d1.abs() > k.err_disc && (d0 > 0.0) != (d1 > 0.0)) {
+        // No root of `D`: no crossing, if `D` keeps one sign beyond its rounding.
+        return (d0.abs() > k.err_disc && d1.abs() > k.err_disc).then(ArrayVec::new);
+    }
+    let (s, _) = converged_root_from(
+        &|s: f64| (k.disc.eval(s), k.disc_s.eval(s)),
+        (0.0, 1.0, d0, d1),
+        d0 / (d0 - d1),
+    )?;
+    // `f` about `u* = u0 + (u1 - u0) s`. Its rounding: `e = o + w d - a` is off by a few units
+    // of `|o| + |a| + |w d|` and, through `w = (a - o).a' / (d.a')`, of `|a - o|` over the
+    // cosine `|d.a'| / (|d| |a'|)`; `f = |e|^2 - r^2` by twice `|e|` times that, and a few units
+    // of `|e|^2 + r^2`. The margin is thirty times as much (`1e-13` against `16 eps`).
+    let axis = &cyl.axis;
+    let span = u1 - u0;
+    let u_star = u0 + span * s;
+    let f = |u: f64| -> (f64, f64) {
+        let (a, a1) = (axis.point(u), axis.d1(u));
+        let along = d.dot(a1);
+        let w = (a - o).dot(a1) / along;
+        let e = o + w * d - a;
+        let r = r0 + (r1 - r0) * ((u - u0) / span);
+        let lengths = o.length()
+            + a.length()
+            + (w * d).length()
+            + (a - o).length() * (d.length() * a1.length() / along.abs());
+        let margin = 1e-13 * (rb + e.length()) * lengths + 1e-15 * rb * rb;
+        (e.length_squared() - r * r, margin)
+    };
+    // `|f'| ~ 2 r |r'|` about `u*`: a step whose change is some hundred margins, kept within
+    // the range (where `D` is known to be monotone).
+    let (_, margin) = f(u_star);
+    let step = 200.0 * margin / (ra * ((r1 - r0) / span).abs());
+    let (ua, ub) = ((u_star - step).max(u0), (u_star + step).min(u1));
+    let ((fa, ea), (fb, eb)) = (f(ua), f(ub));
+    if !(fa.abs() > ea && fb.abs() > eb && (fa > 0.0) != (fb > 0.0)) {
+        return None;
+    }
+    let mut found = ArrayVec::new();
+    found.push((s, -1.0));
+    Some(found)
 }
 
 /// A round fiber's radius at the ends of the `u` range `[u0, u1]`; `None` unless the rule
