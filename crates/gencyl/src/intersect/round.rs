@@ -905,9 +905,10 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
         d0 / (d0 - d1),
     )?;
     // `f` about `u* = u0 + (u1 - u0) s`. Its rounding: `e = o + w d - a` is off by a few units
-    // of `|o| + |a| + |w d|` and, through `w = (a - o).a' / (d.a')`, of `|a - o|` over the
-    // cosine `|d.a'| / (|d| |a'|)`; `f = |e|^2 - r^2` by twice `|e|` times that, and a few units
-    // of `|e|^2 + r^2`. The margin is thirty times as much (`1e-13` against `16 eps`).
+    // of `|o| + |a| + |w d|` and, through `w = (a - o).a' / (d.a')` (relative error a few units
+    // of `|a - o| |a'| / |(a - o).a'| + 1 / cos`, `cos = |d.a'| / (|d| |a'|)`), of
+    // `(|a - o| + |w d|) / cos`; `f = |e|^2 - r^2` by twice `|e|` times that, and a few units of
+    // `|e|^2 + r^2`. The margin is thirty times as much (`1e-13` against `16 eps`).
     let axis = &cyl.axis;
     let span = u1 - u0;
     let u_star = u0 + span * s;
@@ -917,10 +918,8 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
         let w = (a - o).dot(a1) / along;
         let e = o + w * d - a;
         let r = r0 + (r1 - r0) * ((u - u0) / span);
-        let lengths = o.length()
-            + a.length()
-            + (w * d).length()
-            + (a - o).length() * (d.length() * a1.length() / along.abs());
+        let over_cos = d.length() * a1.length() / along.abs();
+        let lengths = o.length() + a.length() + ((w * d).length() + (a - o).length()) * over_cos;
         let margin = 1e-13 * (rb + e.length()) * lengths + 1e-15 * rb * rb;
         (e.length_squared() - r * r, margin)
     };
