@@ -1587,54 +1587,117 @@ mod tests {
     /// axis: there it touches the sphere about `a(u)` (`D = 0` with `P = 0`), where the branch
     /// functions vanish on a whole stretch and certify nothing (`round::level_crossing` takes
     /// it). Axes along `x` and along a random direction (exactly parallel in exact arithmetic,
-    /// the ray's direction the axis' own chord), tapers widening (an entry) and narrowing (an
-    /// exit) along the ray, 0 and 1e4 from the origin, distances from the axis 1e-6 to 0.5 of
-    /// the radius beyond the thin end's, and directions 1e-15 to 1e-6 off parallel: the side
-    /// crossing at the `u` where `r(u)` is the distance (to 1e-6), entering where the fiber
-    /// widens. (Before, every exactly parallel ray missed it, nearly every time.)
+    /// the ray's direction the axis' own chord), lengths 1/8 to 8, radii 1e-6 to 1e-1 of the
+    /// length, tapers from `1 + 1e-3` to 1e3 widening (an entry) or narrowing (an exit) along
+    /// the ray, 0 and 1e4 from the origin, distances from the axis between the end radii, and
+    /// directions exactly parallel and 1e-15 to 1e-6 off: exactly one side crossing, at the `u`
+    /// where `r(u)` is the distance (to 1e-6 relative in the radius, and the tilt's drift),
+    /// entering where the fiber widens; and two cases an independent review found missed by a first version. (Before,
+    /// nearly every exactly parallel ray missed it.)
     #[test]
     fn rays_parallel_to_a_straight_tapered_axis_cross_its_side() {
+        // `slack`: how far the ray's distance from the axis may drift along the fiber (a tilt,
+        // the rounding of the inputs). Whether the fiber could be built (a section thinner than
+        // `f64` resolves at its position is refused).
+        let check = |bezier: [DVec3; 4], k: [f64; 2], ray: Ray, u: f64, slack: f64, what: &str| {
+            let mut spec = FiberSpec::round(bezier, k[0]);
+            spec.major_radius = k;
+            spec.minor_radius = k;
+            let Ok(cyl) = spec.build() else {
+                return false;
+            };
+            let cyl = cyl.with_caps(false, false);
+            let mut all = Vec::new();
+            cyl.intersect_all(&ray, 0.0, f64::INFINITY, &mut all);
+            let sides: Vec<&Hit> = all.iter().filter(|h| h.part == Part::Side).collect();
+            let radius = |u: f64| k[0] + (k[1] - k[0]) * u;
+            let widening = (k[1] - k[0]) * ray.dir.dot(bezier[3] - bezier[0]) > 0.0;
+            assert!(
+                sides.len() == 1
+                    && (radius(sides[0].u) - radius(u)).abs() <= 1e-6 * radius(u) + slack
+                    && (sides[0].normal.dot(ray.dir) < 0.0) == widening,
+                "{what}: want one side crossing at u = {u} (widening {widening}): {all:?}"
+            );
+            true
+        };
         let mut rng = Rng(97);
-        let (k0, k1) = (0.0016816246202809558, 0.0028780716374299108);
-        for case in 0..400 {
+        let mut checked = 0;
+        for case in 0..2000 {
             let offset = DVec3::splat(if case % 2 == 0 { 0.0 } else { 1e4 });
             let axis = if case % 4 < 2 {
                 v3(1.0, 0.0, 0.0)
             } else {
                 rng.unit()
             };
-            let bezier = [0.0, 1.0, 2.0, 3.0].map(|j| offset + axis * (j / 3.0));
-            // Widening along the ray (entry) or narrowing (exit).
-            let widening = case % 8 < 4;
-            let mut spec = FiberSpec::round(bezier, k0);
-            spec.major_radius = if widening { [k0, k1] } else { [k1, k0] };
-            spec.minor_radius = spec.major_radius;
-            let cyl = spec.build().unwrap();
-            let across = 1.0 + 10f64.powf(rng.range(-6.0, -0.3));
-            let rho = across * k0;
+            let len = 2f64.powf(rng.range(-3.0, 3.0));
+            let bezier = [0.0, 1.0, 2.0, 3.0].map(|j| offset + axis * (j * len / 3.0));
+            let k0 = len * 10f64.powf(rng.range(-6.0, -1.0));
+            let k1 = k0 * 10f64.powf(rng.range(-3.0, 3.0));
+            if (k1 / k0 - 1.0).abs() < 1e-3 {
+                continue;
+            }
             let n = {
                 let m = rng.unit();
                 (m - m.dot(axis) * axis).normalize()
             };
+            // A distance between the end radii, away from both.
+            let s = rng.range(0.05, 0.95);
+            let rho = k0 + (k1 - k0) * s;
             let tilt = [0.0, 0.0, 1e-15, 1e-12, 1e-9, 1e-6][case % 6];
+            let along = if rng.next() < 0.5 { 1.0 } else { -1.0 };
             let chord = bezier[3] - bezier[0];
-            let d = (chord + tilt * chord.length() * n.cross(axis)) * 3.3;
-            // `u` where the radius is `rho`, counted from the thin end.
-            let s = (across - 1.0) * k0 / (k1 - k0);
-            if s >= 0.95 {
+            let d = (chord + tilt * chord.length() * n.cross(axis)) * (along * 3.3);
+            let start = if along > 0.0 { -0.3 } else { 1.3 };
+            let ray = Ray::new(bezier[0] + start * chord + rho * n, d);
+            // The tilt's drift, and the rounding of the inputs 1e4 from the origin; a case where
+            // they could move the crossing a hundredth of the way to an end is not posed.
+            let slack = 2.0 * tilt * len + 16.0 * f64::EPSILON * (offset.x + len);
+            if slack > 0.01 * (k1 - k0).abs() * s.min(1.0 - s) {
                 continue;
             }
-            let u = if widening { s } else { 1.0 - s };
-            let ray = Ray::new(bezier[0] - 0.7 * axis + rho * n, d);
-            let mut all = Vec::new();
-            cyl.intersect_all(&ray, 0.0, f64::INFINITY, &mut all);
-            assert!(
-                all.iter().any(|h| h.part == Part::Side
-                    && (h.u - u).abs() < 1e-6
-                    && (h.normal.dot(d) < 0.0) == widening),
-                "case {case} (tilt {tilt}, across {across}): no side crossing at u = {u}: {all:?}"
-            );
+            let what = format!("case {case} (tilt {tilt}, radii {k0:e} to {k1:e})");
+            checked += usize::from(check(bezier, [k0, k1], ray, s, slack, &what));
         }
+        assert!(checked > 1500, "{checked}");
+        // The review's cases: a crossing 3.7e-6 of the length from a thin end (the first
+        // version's margin scaled with the thick end's radius), and a gentle taper on a random
+        // axis 1e4 from the origin (its trigger asked `|r r'|` for a million times `P`'s bound).
+        // The `u` where the radius is the ray's distance from the axis' line (the ray parallel).
+        let at = |bezier: [DVec3; 4], k: [f64; 2], ray: &Ray| {
+            let (c, e) = (bezier[3] - bezier[0], ray.origin - bezier[0]);
+            let rho = (e - e.dot(c) / c.length_squared() * c).length();
+            (rho - k[0]) / (k[1] - k[0])
+        };
+        let x = |x: f64| v3(x, 0.25, -0.5);
+        let (bezier, k) = (
+            [0.0, 4.0 / 3.0, 8.0 / 3.0, 4.0].map(x),
+            [1.6571821818391194e-4, 3.6070217718343064e-8],
+        );
+        let ray = Ray::new(
+            v3(5.2, 0.2500000347502933, -0.49999998825362335),
+            v3(-0.4843461344615401, 0.0, 0.0),
+        );
+        let u = at(bezier, k, &ray);
+        assert!((u - (1.0 - 3.7e-6)).abs() < 1e-7, "{u}");
+        let built = check(bezier, k, ray, u, 0.0, "review: near the thin end");
+        assert!(built);
+        let (a, b) = (
+            v3(10000.0, -3700.0, 7100.0),
+            v3(9999.277701774157, -3699.836170179179, 7099.328103383879),
+        );
+        let (bezier, k) = (
+            [a, a + (b - a) / 3.0, a + (b - a) * (2.0 / 3.0), b],
+            [1.0390342921484568e-5, 1.2113213391646198e-5],
+        );
+        let ray = Ray::new(
+            v3(9999.061019672774, -3699.787021374816, 7099.126526445498),
+            v3(0.3108279831113054, -0.07050120152219749, 0.2891385615750511),
+        );
+        let u = at(bezier, k, &ray);
+        assert!((u - 0.26198).abs() < 1e-4, "{u}");
+        let slack = 16.0 * f64::EPSILON * 1e4;
+        let built = check(bezier, k, ray, u, slack, "review: random axis at 1e4");
+        assert!(built);
     }
 
     /// `intersect_first_entering_with` gives the first entry (`normal . d <= 0`) of the full

@@ -856,7 +856,12 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
 /// `D` below its rounding bound (the axis keeps its distance from the ray: a ray parallel, or
 /// parallel but for the rounding of the inputs, to a straight axis) and the radius varies, as
 /// `(s, sign)`; `None` where that is not the case, or the answer is not certified (the other
-/// methods then decide).
+/// methods then decide). On an independent review's 13,205 parallel and nearly parallel rays
+/// (tilts 0 and 1e-16 to 1e-5; straight tapered fibers to 1e8 from the origin, tapers from
+/// `1 + 1e-9` to `1e6`) against a dense scan of the normal-plane function: no extra or
+/// misplaced crossing (radius at the hit within 3e-12 of the truth); 142 missed, against 2,802
+/// without this (nearly parallel rays whose crossings' `D` lies above this band but too low
+/// for the branch method to certify: README, Not yet).
 ///
 /// There `H± = -P ± Z' sqrt(D)` vanish (exactly parallel) or nearly vanish wherever `D <= 0`,
 /// and the branch functions certify nothing; but `G = P^2 - Z'^2 D = 0` puts every crossing
@@ -882,22 +887,27 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
     let (p_lo, p_hi) = k.p.range();
     let p_bound = 2.0 * k.err_p + p_lo.abs().max(p_hi.abs());
     let (ra, rb) = (r0.abs().min(r1.abs()), r0.abs().max(r1.abs()));
-    // `|r r'|` on the range (`r' = r1 - r0` per unit of `s`) far above `P`'s bound, and `P`
-    // within its rounding: its coefficients no larger than the bound itself.
     let (z_lo, z_hi) = k.z_s.range();
     let z_min = if z_lo > 0.0 { z_lo } else { -z_hi } - k.err_z;
-    // Every crossing has `D = P^2 / Z'^2 <= (p_bound / z_min)^2`: below `D`'s own rounding
-    // level (the branch method cannot certify it), and `|r r'|` far above `P`'s bound.
-    let level = p_bound / z_min;
-    if !(z_min > 0.0 && level * level <= 16.0 * k.err_disc && ra * (r1 - r0).abs() > 1e6 * p_bound)
-    {
+    // Every crossing has `D = P^2 / Z'^2 <= band = (p_bound / z_min)^2`, here below `D`'s own
+    // rounding level (the branch method cannot certify it); `D' = 2 r r' - 2 P` keeps the sign
+    // of `r' = r1 - r0` (per unit of `s`) where `|r r'| > |P|`: four times `P`'s bound.
+    let band = (p_bound / z_min).powi(2);
+    if !(z_min > 0.0 && band <= 16.0 * k.err_disc && ra * (r1 - r0).abs() > 4.0 * p_bound) {
         return None;
     }
     cyl.obliquity(d, u0, u1)?;
     let (d0, d1) = (k.disc.eval(0.0), k.disc.eval(1.0));
-    if !(d0.abs() > k.err_disc && d1.abs() > k.err_disc && (d0 > 0.0) != (d1 > 0.0)) {
-        // No root of `D`: no crossing, if `D` keeps one sign beyond its rounding.
-        return (d0.abs() > k.err_disc && d1.abs() > k.err_disc).then(ArrayVec::new);
+    // The true `D` within `err_disc` of the computed one: certainly above every crossing's,
+    // or certainly negative (none has `D < 0`).
+    let above = |x: f64| x > band + k.err_disc;
+    let below = |x: f64| x < -k.err_disc;
+    if above(d0) && above(d1) || below(d0) && below(d1) {
+        // `D` monotone: beyond the crossings' band on the whole range, so none.
+        return Some(ArrayVec::new());
+    }
+    if !(above(d0) && below(d1) || below(d0) && above(d1)) {
+        return None;
     }
     let (s, _) = converged_root_from(
         &|s: f64| (k.disc.eval(s), k.disc_s.eval(s)),
@@ -917,16 +927,18 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
         let along = d.dot(a1);
         let w = (a - o).dot(a1) / along;
         let e = o + w * d - a;
-        let r = r0 + (r1 - r0) * ((u - u0) / span);
+        let r = (r0 + (r1 - r0) * ((u - u0) / span)).abs();
         let over_cos = d.length() * a1.length() / along.abs();
         let lengths = o.length() + a.length() + ((w * d).length() + (a - o).length()) * over_cos;
-        let margin = 1e-13 * (rb + e.length()) * lengths + 1e-15 * rb * rb;
+        // (`r` itself is off by a few units of `rb`.)
+        let margin = 1e-13 * (r + e.length()) * lengths + 1e-15 * (e.length_squared() + r * rb);
         (e.length_squared() - r * r, margin)
     };
-    // `|f'| ~ 2 r |r'|` about `u*`: a step whose change is some hundred margins, kept within
-    // the range (where `D` is known to be monotone).
+    // `|f'| ~ 2 r |r'|` about `u*` (`|e|` stays near the radius there): a step whose change is
+    // some hundred margins, kept within the range (where `D` is known to be monotone).
     let (_, margin) = f(u_star);
-    let step = 200.0 * margin / (ra * ((r1 - r0) / span).abs());
+    let r_star = (r0 + (r1 - r0) * s).abs().max(ra);
+    let step = 200.0 * margin / (r_star * ((r1 - r0) / span).abs());
     let (ua, ub) = ((u_star - step).max(u0), (u_star + step).min(u1));
     let ((fa, ea), (fb, eb)) = (f(ua), f(ub));
     if !(fa.abs() > ea && fb.abs() > eb && (fa > 0.0) != (fb > 0.0)) {
