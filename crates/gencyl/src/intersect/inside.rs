@@ -283,14 +283,15 @@ mod tests {
         Aim::FromSurface,
     ];
 
-    /// Case `case` (its shape, ray and window drawn from `rng`): a round fiber of length about 1 and radius 1e-6 to 1e-1 (every fifth 1e4
-    /// from the origin), straight, gently curved like hair or bent into a U (whose thicker ones
-    /// may fold, and are never certified), of constant radius or tapering up to threefold, each
-    /// end capped or open; and a ray aimed at a point of the axis or its continuation beyond
-    /// the ends (`u` in -0.15..1.15), passing it at a distance from the core to just inside
-    /// the radius (1e-9 of it) and just outside it, in the ways of [`Aim`], from 1e-3 to 10
-    /// lengths back, with a direction of length 1e-3 to 1e3, over windows `(tmin, tmax)`
-    /// from `0` or a random point to infinity or around the aimed point. Returns the fiber, its
+    /// Case `case` (its shape, ray and window drawn from `rng`): a round fiber of length about
+    /// 1 and radius 1e-6 to 1e-1 (every fifth 1e4 from the origin), straight, gently curved
+    /// like hair or bent into a U (every eleventh; its thicker ones may fold, and are never
+    /// certified), of constant radius or tapering up to threefold, each end capped or open; and
+    /// a ray aimed at a point of the axis or its continuation beyond the ends (`u` in
+    /// -0.15..1.15), passing it at a distance from the core to just inside the radius (1e-9 of
+    /// it) and just outside it, in the ways of [`Aim`], from 1e-3 to 10 lengths back, with a
+    /// direction of length 1e-3 to 1e3, over windows `(tmin, tmax)` from `0` or a random point
+    /// to infinity or around the aimed point. Returns the fiber, its
     /// radius at the aimed point, the ray, the window, the aim, the distance of the aimed point
     /// from the axis over the radius, and the aimed point's `t`.
     #[allow(clippy::type_complexity)]

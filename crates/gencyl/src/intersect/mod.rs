@@ -1592,8 +1592,8 @@ mod tests {
     /// the ray, 0 and 1e4 from the origin, distances from the axis between the end radii, and
     /// directions exactly parallel and 1e-15 to 1e-6 off: exactly one side crossing, at the `u`
     /// where `r(u)` is the distance (to 1e-6 relative in the radius, and the tilt's drift),
-    /// entering where the fiber widens; and two cases an independent review found missed by a first version. (Before,
-    /// nearly every exactly parallel ray missed it.)
+    /// entering where the fiber widens; and two cases an independent review found missed by a
+    /// first version. (Before, nearly every exactly parallel ray missed it.)
     #[test]
     fn rays_parallel_to_a_straight_tapered_axis_cross_its_side() {
         // `slack`: how far the ray's distance from the axis may drift along the fiber (a tilt,

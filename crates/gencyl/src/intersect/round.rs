@@ -867,12 +867,12 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
 /// and the branch functions certify nothing; but `G = P^2 - Z'^2 D = 0` puts every crossing
 /// where `0 <= D <= (p / z)^2` (`p` a bound of the true `|P|`, its coefficients' and their
 /// rounding's, and `z` the least `|Z'|`), and `D' = 2 r r' - 2 P` keeps the sign of `r'` where
-/// `|r r'|` exceeds `p` by far: `D` is monotone, and every crossing lies at its root `s*`, to
-/// within `D`'s own resolution. A crossing is certain where the normal-plane function
-/// `f(u) = |x(u) - a(u)|^2 - r(u)^2` (`x(u)` the ray's point in the normal plane at `u`, on a
-/// range oblique to the ray) changes sign about `s*` beyond its rounding: then the range has
-/// exactly one crossing, at `s*`. (On a ray exactly parallel to a straight tapered axis the
-/// branch method found none.)
+/// `|r r'|` exceeds `p` (four times `p` is asked): `D` is monotone, and every crossing lies at
+/// its root `s*`, to within `D`'s own resolution. A crossing is certain where the normal-plane
+/// function `f(u) = |x(u) - a(u)|^2 - r(u)^2` (`x(u)` the ray's point in the normal plane at
+/// `u`, on a range oblique to the ray) changes sign within the range beyond its rounding: then
+/// the range has exactly one crossing, at `s*`. (On a ray exactly parallel to a straight
+/// tapered axis the branch method found none.)
 fn level_crossing<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
@@ -909,11 +909,14 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
     if !(above(d0) && below(d1) || below(d0) && above(d1)) {
         return None;
     }
-    let (s, _) = converged_root_from(
+    let (s, converged) = converged_root_from(
         &|s: f64| (k.disc.eval(s), k.disc_s.eval(s)),
         (0.0, 1.0, d0, d1),
         d0 / (d0 - d1),
     )?;
+    if !converged {
+        return None;
+    }
     // `f` about `u* = u0 + (u1 - u0) s`. Its rounding: `e = o + w d - a` is off by a few units
     // of `|o| + |a| + |w d|` and, through `w = (a - o).a' / (d.a')` (relative error a few units
     // of `|a - o| |a'| / |(a - o).a'| + 1 / cos`, `cos = |d.a'| / (|d| |a'|)`), of
