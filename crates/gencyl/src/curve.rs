@@ -72,6 +72,18 @@ impl CubicBezier {
         unit_scale(largest_coordinate(&self.second_hodograph()))
     }
 
+    /// The power-basis coefficients `[c0, c1, c2, c3]` of `a(u) = c0 + c1 u + c2 u^2 + c3 u^3`:
+    /// `c0 = P0`, `c1 = 3 (P1 - P0)`, `c2 = 3 (P2 - 2 P1 + P0)`, `c3 = P3 - 3 P2 + 3 P1 - P0`.
+    pub fn power_coefficients(&self) -> [DVec3; 4] {
+        let p = &self.points;
+        [
+            p[0],
+            3.0 * (p[1] - p[0]),
+            3.0 * (p[2] - 2.0 * p[1] + p[0]),
+            p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0],
+        ]
+    }
+
     /// The constant `a'''`.
     pub fn third_derivative(&self) -> DVec3 {
         let p = &self.points;

@@ -32,6 +32,7 @@
 
 use glam::DVec3;
 
+use crate::curve::CubicBezier;
 use crate::cylinder::{GeneralizedCylinder, Ray};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
@@ -76,14 +77,14 @@ pub(crate) fn certain_entry<C: CrossSection, S: SweepRule>(
         return None;
     }
     let p = cyl.axis.points;
-    let axis = Power::new(p);
+    let axis = Power(cyl.axis.power_coefficients());
     let size = p.iter().fold(0.0f64, |m, x| m.max(x.abs().max_element()));
     // Outside at `tmin`: the cheapest test first (a ray leaving a neighbouring fiber's surface
     // fails it, and a ray passing far from this one is mostly culled before it gets here).
     let x0 = o + tmin * d;
     let err0 = 4.0 * MARGIN * (size + o.abs().max_element() + x0.abs().max_element());
     let (k_min, k_max) = (k0.min(k1), k0.max(k1));
-    if !beyond(x0, p, k_max * (1.0 + MARGIN) + err0, OUTSIDE_DEPTH) {
+    if !beyond(x0, &cyl.axis, k_max * (1.0 + MARGIN) + err0, OUTSIDE_DEPTH) {
         return None;
     }
     // The ray's nearest approach to the axis, from the nearest approach of the two lines.
@@ -179,21 +180,12 @@ pub(crate) fn certain_entry<C: CrossSection, S: SweepRule>(
     Some(t)
 }
 
-/// A cubic Bezier curve in power form, `a(u) = c0 + c1 u + c2 u^2 + c3 u^3`, evaluated by
+/// A cubic Bezier curve in power form ([`CubicBezier::power_coefficients`]), evaluated by
 /// Horner's rule: on `[0, 1]` its rounding is a few units of `f64` times `|c_i| <= 8 max|p_i|`,
 /// far inside [`MARGIN`].
 struct Power([DVec3; 4]);
 
 impl Power {
-    fn new(p: [DVec3; 4]) -> Self {
-        Power([
-            p[0],
-            3.0 * (p[1] - p[0]),
-            3.0 * (p[2] - 2.0 * p[1] + p[0]),
-            p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0],
-        ])
-    }
-
     /// `a(u)`.
     fn point(&self, u: f64) -> DVec3 {
         let c = &self.0;
@@ -211,11 +203,12 @@ impl Power {
     }
 }
 
-/// Whether every point of the Bezier curve `p` lies farther than `reach` from `x`: where the
-/// chord stays farther than `reach` plus the inner points' distance from it (module docs), or,
-/// `depth` times over, each half does (de Casteljau's halves hug the curve: their points'
-/// distance from their chords falls fourfold a halving).
-fn beyond(x: DVec3, p: [DVec3; 4], reach: f64, depth: u32) -> bool {
+/// Whether every point of `curve` lies farther than `reach` from `x`: where the chord stays
+/// farther than `reach` plus the inner points' distance from it (module docs), or, `depth`
+/// times over, each half does ([`CubicBezier::segment`]: the halves hug the curve, their
+/// points' distance from their chords falling fourfold a halving).
+fn beyond(x: DVec3, curve: &CubicBezier, reach: f64, depth: u32) -> bool {
+    let p = curve.points;
     let dev = segment_distance(p[1], p[0], p[3]).max(segment_distance(p[2], p[0], p[3]));
     if segment_distance(x, p[0], p[3]) > dev + reach {
         return true;
@@ -223,20 +216,9 @@ fn beyond(x: DVec3, p: [DVec3; 4], reach: f64, depth: u32) -> bool {
     if depth == 0 {
         return false;
     }
-    let (l, r) = halves(p);
-    beyond(x, l, reach, depth - 1) && beyond(x, r, reach, depth - 1)
-}
-
-/// De Casteljau's halves of the cubic Bezier curve `p`.
-fn halves(p: [DVec3; 4]) -> ([DVec3; 4], [DVec3; 4]) {
-    let (a, b, c) = (
-        (p[0] + p[1]) * 0.5,
-        (p[1] + p[2]) * 0.5,
-        (p[2] + p[3]) * 0.5,
-    );
-    let (ab, bc) = ((a + b) * 0.5, (b + c) * 0.5);
-    let m = (ab + bc) * 0.5;
-    ([p[0], a, ab, m], [m, bc, c, p[3]])
+    [(0.0, 0.5), (0.5, 1.0)]
+        .into_iter()
+        .all(|(u0, u1)| beyond(x, &curve.segment(u0, u1), reach, depth - 1))
 }
 
 /// The distance from `x` to the segment `[a, b]`.

@@ -88,14 +88,8 @@ fn reach_polynomial<C: CrossSection, S: SweepRule>(
     d: DVec3,
     r: [f64; 2],
 ) -> ([f64; DEGREE + 1], f64) {
-    let p = cyl.axis.points;
     // a(u) = c0 + c1 u + c2 u^2 + c3 u^3.
-    let c = [
-        p[0],
-        3.0 * (p[1] - p[0]),
-        3.0 * (p[2] - 2.0 * p[1] + p[0]),
-        p[3] - 3.0 * p[2] + 3.0 * p[1] - p[0],
-    ];
+    let c = cyl.axis.power_coefficients();
     let across = |x: DVec3| x - d * (x.dot(d) / d.length_squared());
     let e = [
         across(o - c[0]),
