@@ -105,8 +105,9 @@ impl RadialCells {
     }
 
     /// Defers the cells of the oblique range `[a, b]` (`rising`: `a'.d > 0` there,
-    /// [`GeneralizedCylinder::obliquity`]), or isolates them into `out` at once where the cells
-    /// are not lazy (and one isolation keeps all their roots) or there is no room for them.
+    /// [`GeneralizedCylinder::obliquity`]) and returns their indices, or isolates them into
+    /// `out` at once where the cells are not lazy (and one isolation keeps all their roots) or
+    /// there is no room for them.
     pub(crate) fn add<C: CrossSection, S: SweepRule>(
         &mut self,
         cyl: &GeneralizedCylinder<C, S>,
@@ -114,7 +115,7 @@ impl RadialCells {
         (a, b): (f64, f64),
         rising: bool,
         out: &mut SideRoots,
-    ) {
+    ) -> ArrayVec<usize, 3> {
         let (f, opts) = unit_radial(cyl, (o, d));
         // Room for the most cells `first_cells` gives.
         let room = self.cells.remaining_capacity() >= 3;
@@ -139,11 +140,13 @@ impl RadialCells {
                     crate::budget::note_exhausted();
                 }
                 push_roots(cyl, (o, d), &us, out);
-                return;
+                return ArrayVec::new();
             }
         }
+        let first = self.cells.len();
         self.cells
             .extend(place(cyl, (o, d), (a, b), &cells, hints, pending));
+        (first..self.cells.len()).collect()
     }
 
     /// The deferred cells: index, lower and upper bound of `w`, and what each holds.

@@ -291,7 +291,10 @@ impl Cell {
 }
 
 /// Isolates the roots of branch `sign` on the stretch `[a, b]` (where `D >= 0`), ascending.
-fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16>) {
+/// Returns whether every root is certified: false where a cell too narrow (or past the budget)
+/// to split further may hold a root that its ends' signs do not show, or more than one.
+fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16>) -> bool {
+    let mut sure = true;
     let value = |s: f64| k.branch(s, sign);
     let mut stack: ArrayVec<Cell, 64> = ArrayVec::new();
     stack.push(Cell::of(k, a, b));
@@ -319,12 +322,12 @@ fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16
             dh.excludes_zero()
         };
         if monotone || narrow {
+            sure &= monotone;
             let (fa, fb) = (k.h(c.s0, sign), k.h(c.s1, sign));
             if let Some(r) = bracketed_root(&value, c.s0, c.s1, fa, fb)
-                && !out.is_full()
                 && out.last().is_none_or(|&l| r > l)
             {
-                out.push(r);
+                sure &= out.try_push(r).is_ok();
             }
             continue;
         }
@@ -332,6 +335,7 @@ fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16
         stack.push(r);
         stack.push(l);
     }
+    sure
 }
 
 /// Most cells [`Product::cells`] examines before it leaves the range to [`branch_roots`].
@@ -777,29 +781,60 @@ impl Deferred {
         (*w, holds)
     }
 
-    /// Polishes cell `i` into `out` (as [`roots`] would have given its roots).
+    /// Polishes cell `i` into `out` (as [`roots`] would have given its roots); where they are
+    /// not certified and the ray is oblique to the cell's `u` range, returns that range and
+    /// whether `a'.d > 0` there instead, for the Radial method's isolation.
     pub(crate) fn polish<C: CrossSection, S: SweepRule>(
         &self,
         i: usize,
         cyl: &GeneralizedCylinder<C, S>,
         d: DVec3,
         out: &mut SideRoots,
-    ) {
+    ) -> Option<((f64, f64), bool)> {
         let (range, cell, _) = self.cells[i];
         let r = &self.ranges[range];
         let mut roots = ArrayVec::new();
         if settle(&r.k, &cell, &mut roots).is_none() {
-            roots = stretch_roots(&r.k, cell.s0, cell.s1);
+            let (u0, u1) = r.u;
+            let cell_u = (u0 + (u1 - u0) * cell.s0, u0 + (u1 - u0) * cell.s1);
+            return subdivided(cyl, d, &r.k, r.u, cell_u, out);
         }
         push_all(cyl, d, &r.k, r.u, d.length(), &roots, out);
+        None
     }
+}
+
+/// The roots on the part `[ua, ub]` of the `u` range `[u0, u1]` (whose polynomials are `k`) by
+/// the subdivision of both branches ([`stretch_roots`]), into `out`; where it cannot certify
+/// them (the branch functions nearly vanish along the whole part: a ray nearly parallel to a
+/// nearly straight tapered axis) and the ray is oblique to the part, nothing, and returns the
+/// part and whether `a'.d > 0` there: the Radial method's normal-plane function
+/// (`|e(u)|^2 / r(u)^2 - 1`, `e(u)` the ray's point in the normal plane at `u` less `a(u)`) has
+/// simple roots there, which its isolation certifies.
+fn subdivided<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    d: DVec3,
+    k: &Polys,
+    (u0, u1): (f64, f64),
+    (ua, ub): (f64, f64),
+    out: &mut SideRoots,
+) -> Option<((f64, f64), bool)> {
+    let span = u1 - u0;
+    let (found, sure) = stretch_roots(k, (ua - u0) / span, (ub - u0) / span);
+    if !sure && let Some(rising) = cyl.obliquity(d, ua, ub) {
+        return Some(((ua, ub), rising));
+    }
+    push_all(cyl, d, k, (u0, u1), d.length(), &found, out);
+    None
 }
 
 /// The side roots of a round fiber for the local ray `o + w d` on the `u` range `[u0, u1]`:
 /// polished into `out`, or where `deferred` has room and [`tube_cells`] or the product method
-/// isolates them, left there as cells. With `entries_after = Some(w_min)` (a query that wants only entries
-/// beyond `w_min`, on a tube: [`GeneralizedCylinder::intersect_first_entering_with`]) a range
-/// that [`no_entry_after`] clears is left at once.
+/// isolates them, left there as cells. With `entries_after = Some(w_min)` (a query that wants
+/// only entries beyond `w_min`, on a tube: [`GeneralizedCylinder::intersect_first_entering_with`])
+/// a range that [`no_entry_after`] clears is left at once. Returns `Some(a'.d > 0)` where none
+/// of these certifies the range's roots and the ray is oblique to it ([`subdivided`]): nothing
+/// is pushed then, and the caller isolates the range by the Radial method.
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
@@ -808,31 +843,28 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     entries_after: Option<f64>,
     out: &mut SideRoots,
     deferred: &mut Deferred,
-) {
-    let Some(r) = range_radius(cyl, (u0, u1)) else {
-        return;
-    };
+) -> Option<bool> {
+    let r = range_radius(cyl, (u0, u1))?;
     let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d);
     let len = d.length();
     if entries_after.is_some_and(|w_min| {
         no_entry_after(k.balls(), w_min * len, r[0].abs().max(r[1].abs()), None)
     }) {
-        return;
+        return None;
     }
     if let Some(s) = level_crossing(cyl, o, d, (u0, u1), &k) {
         push_all(cyl, d, &k, (u0, u1), len, &s, out);
-        return;
+        return None;
     }
     let mut cells = ArrayVec::new();
     if cyl.may_fold() || tube_cells(&k, &mut cells).is_none() {
         cells.clear();
         if product_cells(&k, &mut cells).is_none() {
-            push_all(cyl, d, &k, (u0, u1), len, &stretch_roots(&k, 0.0, 1.0), out);
-            return;
+            return subdivided(cyl, d, &k, (u0, u1), (u0, u1), out).map(|(_, rising)| rising);
         }
     }
     if cells.is_empty() {
-        return;
+        return None;
     }
     let room = deferred.cells.remaining_capacity() >= cells.len();
     if !deferred.ranges.is_full() && room {
@@ -843,13 +875,14 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
             deferred.cells.push((range, cell, bounds));
         }
         deferred.ranges.push(DeferredRange { k, u: (u0, u1) });
-        return;
+        return None;
     }
     let mut found = ArrayVec::new();
     if settle_all(&k, &cells, &mut found).is_none() {
-        found = stretch_roots(&k, 0.0, 1.0);
+        return subdivided(cyl, d, &k, (u0, u1), (u0, u1), out).map(|(_, rising)| rising);
     }
     push_all(cyl, d, &k, (u0, u1), len, &found, out);
+    None
 }
 
 /// The side crossings of a range where `P = X X' + Y Y'` is so small that every crossing has
@@ -1135,8 +1168,9 @@ fn push_all<C: CrossSection, S: SweepRule>(
 }
 
 /// The roots on `[a, b]` of both branches as `(s, sign)`, each branch on each stretch where
-/// `D >= 0` (between the roots of `D`) by [`branch_roots`]: the method for any angle.
-fn stretch_roots(k: &Polys, a: f64, b: f64) -> ArrayVec<(f64, f64), 16> {
+/// `D >= 0` (between the roots of `D`) by [`branch_roots`]: the method for any angle, and
+/// whether [`branch_roots`] certified them all.
+fn stretch_roots(k: &Polys, a: f64, b: f64) -> (ArrayVec<(f64, f64), 16>, bool) {
     let mut ends: ArrayVec<f64, 18> = ArrayVec::new();
     ends.push(a);
     let mut zs = ArrayVec::new();
@@ -1145,6 +1179,7 @@ fn stretch_roots(k: &Polys, a: f64, b: f64) -> ArrayVec<(f64, f64), 16> {
     ends.extend(zs.into_iter().filter(|&z| z > a && z < b));
     ends.push(b);
     let mut found = ArrayVec::new();
+    let mut sure = true;
     for w in ends.windows(2) {
         let (a, b) = (w[0], w[1]);
         if !(b > a) || !(k.disc.eval(0.5 * (a + b)) > 0.0) {
@@ -1152,15 +1187,15 @@ fn stretch_roots(k: &Polys, a: f64, b: f64) -> ArrayVec<(f64, f64), 16> {
         }
         for sign in [-1.0, 1.0] {
             let mut ss = ArrayVec::new();
-            branch_roots(k, a, b, sign, &mut ss);
+            sure &= branch_roots(k, a, b, sign, &mut ss);
             for s in ss {
                 if found.try_push((s, sign)).is_err() {
-                    return found;
+                    return (found, false);
                 }
             }
         }
     }
-    found
+    (found, sure)
 }
 
 /// Records the hit at `(u, w)`, unless it repeats one (both branches meet where `D = 0`).
@@ -1217,7 +1252,7 @@ mod tests {
     /// once. (An entry and an exit at nearly one `s`, as a ray nearly in the normal plane has
     /// them, are two roots: their points `z = Z ± sqrt(D)` differ.)
     fn subdivision_roots(k: &Polys) -> Vec<(f64, f64)> {
-        let mut roots = stretch_roots(k, 0.0, 1.0).to_vec();
+        let mut roots = stretch_roots(k, 0.0, 1.0).0.to_vec();
         roots.sort_by(|a, b| a.0.total_cmp(&b.0));
         let z = |root| ray_point(k, root);
         let r_max = k.radius[0].abs().max(k.radius[1].abs());
@@ -1437,7 +1472,7 @@ mod tests {
                 let mut one = ArrayVec::new();
                 if settle(&k, cell, &mut one).is_none() {
                     unsettled += 1;
-                    one = stretch_roots(&k, cell.s0, cell.s1);
+                    one = stretch_roots(&k, cell.s0, cell.s1).0;
                 }
                 fast.extend(one);
             }
