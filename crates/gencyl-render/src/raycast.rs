@@ -7,7 +7,7 @@
 use std::io::{self, Write};
 use std::time::{Duration, Instant};
 
-use gencyl::Ray;
+use gencyl::{Ray, times_power_of_two};
 use rayon::prelude::*;
 
 use crate::accel::{QueryCounts, Scene, SceneHit, Scratch};
@@ -155,10 +155,6 @@ pub fn cast_rays_counted(
     (all_rows, counts)
 }
 
-/// A ray whose direction is far from unit size is cast with the direction scaled by a power
-/// of two (exact), so squared lengths neither overflow nor underflow; `t` is scaled back.
-const SCALE_LIMIT: f64 = 1e100;
-
 /// The hits of one ray, appended to `out`.
 pub fn cast(
     scene: &Scene,
@@ -168,25 +164,10 @@ pub fn cast(
     out: &mut Vec<SceneHit>,
     scratch: &mut Scratch,
 ) {
-    let m = ray.dir.abs().max_element();
-    // 2^e with d 2^e having its largest component in [1, 2); e in [-1024, 1074].
-    let e = if (1.0 / SCALE_LIMIT..SCALE_LIMIT).contains(&m) {
-        0
-    } else {
-        -(m.log2().floor() as i32)
-    };
-    // x 2^k, exact (barring overflow and underflow) for |k| up to 2046, in two steps since
-    // 2^k alone may be out of range.
-    // (The common case, e = 0, skips the powers.)
-    let scale = |x: f64, k: i32| {
-        if k == 0 {
-            x
-        } else {
-            x * 2f64.powi(k / 2) * 2f64.powi(k - k / 2)
-        }
-    };
-    let ray = Ray::new(ray.origin, ray.dir.map(|x| scale(x, e)));
-    // The scaled ray's t': o + t' (d 2^e) = o + t d, so t = t' 2^e.
+    // A direction far from unit size is scaled by a power of two (exact), so that the walk's
+    // squared lengths neither overflow nor underflow; `t` is scaled back.
+    let (ray, e) = ray.in_working_range().unwrap_or((*ray, 0));
+    let scale = times_power_of_two;
     let start = out.len();
     let tmin = scale(tmin, -e);
     if all {

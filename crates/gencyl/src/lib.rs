@@ -40,6 +40,7 @@ mod test_rng;
 pub use curve::CubicBezier;
 pub use cylinder::{
     Aabb, FiberSpec, GeneralizedCylinder, GeometryError, Hit, Part, Ray, Unresolved,
+    times_power_of_two,
 };
 pub use frame::{Frame, FrameAt, Framing};
 pub use intersect::Method;

@@ -34,7 +34,7 @@ use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use crate::bernstein::Bernstein;
-use crate::cylinder::{Aabb, GeneralizedCylinder, Hit, Part, Ray, v2};
+use crate::cylinder::{Aabb, GeneralizedCylinder, Hit, Part, Ray, times_power_of_two, v2};
 use crate::frame::{Framing, frame_with};
 use crate::real::{Real, V2};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS};
@@ -291,6 +291,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// certainly enters, from a point outside it to one inside, answers at once
     /// ([`inside`]: a few hundred instructions against a few thousand).
     pub fn any_hit(&self, ray: &Ray, tmin: f64, tmax: f64, entering: bool) -> bool {
+        if let Some((ray, e)) = ray.in_working_range() {
+            let (tmin, tmax) = (times_power_of_two(tmin, -e), times_power_of_two(tmax, -e));
+            return self.any_hit(&ray, tmin, tmax, entering);
+        }
         if inside::certain_entry(self, ray, tmin, tmax).is_some() {
             return true;
         }
@@ -316,6 +320,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// get `false` at once; rays that do not start on the fiber are answered at a similar
     /// cost, mostly with `false`.
     pub fn enters_nowhere_after(&self, ray: &Ray, tmin: f64, near_u: Option<f64>) -> bool {
+        if let Some((ray, e)) = ray.in_working_range() {
+            return self.enters_nowhere_after(&ray, times_power_of_two(tmin, -e), near_u);
+        }
         let d = ray.dir;
         if !(d.length_squared() > 0.0) || !d.is_finite() || !ray.origin.is_finite() {
             return false;
@@ -391,6 +398,9 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// Radial method leaves its cells for the walk to reach ([`radial_cells`]); a caller that
     /// takes every hit gains nothing by their bounds and passes `false` (cells are then left
     /// for the walk only where one isolation cannot keep all their roots).
+    /// A direction far from unit size is first scaled by a power of two
+    /// ([`Ray::in_working_range`]), so that `|d|^2` neither overflows nor underflows; `t` is
+    /// scaled back (a hit whose `t` then leaves the `f64` range is dropped).
     #[allow(clippy::too_many_arguments)]
     fn each_hit(
         &self,
@@ -401,6 +411,26 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         skip_exits: bool,
         certain_stops: bool,
         lazy: bool,
+        mut each: impl FnMut(&Hit) -> bool,
+    ) -> bool {
+        let flags = (method, skip_exits, certain_stops, lazy);
+        let Some((ray, e)) = ray.in_working_range() else {
+            return self.each_hit_in_range(ray, tmin, tmax, flags, each);
+        };
+        let (tmin, tmax) = (times_power_of_two(tmin, -e), times_power_of_two(tmax, -e));
+        self.each_hit_in_range(&ray, tmin, tmax, flags, |h| {
+            let t = times_power_of_two(h.t, e);
+            t.is_finite() && each(&Hit { t, ..*h })
+        })
+    }
+
+    /// [`Self::each_hit`] for a direction in the working range.
+    fn each_hit_in_range(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: f64,
+        (method, skip_exits, certain_stops, lazy): (Method, bool, bool, bool),
         mut each: impl FnMut(&Hit) -> bool,
     ) -> bool {
         let d = ray.dir;
@@ -1585,6 +1615,70 @@ mod tests {
         };
         let ray = Ray::new(o, d);
         (cyl, ray, r)
+    }
+
+    /// Directions of any size give the same hits: a direction scaled by `2^k` (exact), for `|k|`
+    /// from 340 to 1000 (beyond `1e100`, where queries rescale it), has every hit of the
+    /// unit-sized one (largest component in `[1, 2)`) to the last bit, its `t` scaled by `2^-k` (where that stays a normal number), from
+    /// [`GeneralizedCylinder::intersect_all`], `intersect`, `any_hit` and
+    /// `enters_nowhere_after` alike; round, tapered, elliptical and three-lobed fibers, rays
+    /// from the surface, inside and outside. And directions scaled by `1e-200`, `1e-30`, `1e30`
+    /// and `1e200` (rounded) have as many hits beyond `1e-9` of the origin, at `u` within `1e-9`. (Before, `|d|^2` overflowed beyond
+    /// about `1e154` and underflowed below `1e-154`: no hits.)
+    #[test]
+    fn hits_do_not_depend_on_the_direction_size() {
+        let mut rng = Rng(41);
+        let mut compared = 0;
+        for case in 0..300 {
+            let (cyl, ray, _) = fiber_and_ray(&mut rng, case);
+            let m = ray.dir.abs().max_element();
+            let unit = Ray::new(ray.origin, ray.dir * 2f64.powi(-(m.log2().floor() as i32)));
+            let mut base = Vec::new();
+            cyl.intersect_all(&unit, 0.0, f64::INFINITY, &mut base);
+            let base_any = cyl.any_hit(&unit, 0.0, f64::INFINITY, true);
+            let base_nowhere = cyl.enters_nowhere_after(&unit, 0.0, None);
+            for k in [-1000, -700, -520, -340, 340, 520, 700, 1000] {
+                let dir = unit.dir.map(|x| times_power_of_two(x, k));
+                if dir.map(|x| times_power_of_two(x, -k)) != unit.dir {
+                    continue;
+                }
+                let scaled = Ray::new(unit.origin, dir);
+                let mut all = Vec::new();
+                cyl.intersect_all(&scaled, 0.0, f64::INFINITY, &mut all);
+                let keep = |h: &Hit| {
+                    let t = times_power_of_two(h.t, -k);
+                    t.is_normal().then_some(Hit { t, ..*h })
+                };
+                let want: Vec<Hit> = base.iter().filter_map(keep).collect();
+                let first = cyl.intersect(&scaled, 0.0, f64::INFINITY);
+                all.retain(|h| h.t.is_normal());
+                assert_eq!(all, want, "case {case}, 2^{k}");
+                if first.is_some_and(|h| h.t.is_normal()) {
+                    assert_eq!(first, want.first().copied());
+                }
+                assert_eq!(cyl.any_hit(&scaled, 0.0, f64::INFINITY, true), base_any);
+                assert_eq!(cyl.enters_nowhere_after(&scaled, 0.0, None), base_nowhere);
+                compared += 1;
+            }
+            // (Hits within `1e-9` of the origin, which may start on the surface, depend on the
+            // direction's rounding.)
+            let mut base = Vec::new();
+            cyl.intersect_all(&ray, 1e-9, f64::INFINITY, &mut base);
+            for f in [1e-200, 1e-30, 1e30, 1e200] {
+                let mut all = Vec::new();
+                let tmin = 1e-9 / f;
+                cyl.intersect_all(
+                    &Ray::new(ray.origin, ray.dir * f),
+                    tmin,
+                    f64::INFINITY,
+                    &mut all,
+                );
+                let same = all.len() == base.len()
+                    && all.iter().zip(&base).all(|(a, b)| (a.u - b.u).abs() < 1e-9);
+                assert!(same, "case {case}, x {f:e}: {all:?} against {base:?}");
+            }
+        }
+        assert!(compared > 2000, "{compared}");
     }
 
     /// A ray parallel to a straight tapered fiber's axis, beyond the radius at one end and
