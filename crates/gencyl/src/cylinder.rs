@@ -33,15 +33,25 @@ impl Ray {
         self.origin + t * self.dir
     }
 
-    /// Where the direction's largest component lies outside `[1e-100, 1e100)` (then `|dir|^2`
-    /// overflows or underflows, or comes close): the same ray with its direction scaled by the
-    /// power of two `2^e` that puts that component in `[1, 2)` (exact), and `e`; `None` for
-    /// other directions (and for zero, infinite or NaN ones, which no query answers). A point
-    /// `t'` of the scaled ray is `t = t' 2^e` of this one: `o + t' (d 2^e) = o + t d`
+    /// Where `|dir|^2` lies outside `[1e-200, 1e200)` (it overflows beyond about `1e154`,
+    /// underflows below `1e-154`): the same ray with its direction scaled by the power of two
+    /// `2^e` that puts its largest component in `[1, 2)` (exact), and `e`; `None` for other
+    /// directions (and for zero, infinite or NaN ones, which no query answers). A point `t'`
+    /// of the scaled ray is `t = t' 2^e` of this one: `o + t' (d 2^e) = o + t d`
     /// ([`times_power_of_two`]).
+    #[inline]
     pub fn in_working_range(&self) -> Option<(Ray, i32)> {
+        if (1e-200..1e200).contains(&self.dir.length_squared()) {
+            return None;
+        }
+        self.rescaled()
+    }
+
+    /// [`Self::in_working_range`]'s rescaled ray (kept out of line: queries rarely need it).
+    #[inline(never)]
+    fn rescaled(&self) -> Option<(Ray, i32)> {
         let m = self.dir.abs().max_element();
-        if (DIRECTION_RANGE.0..DIRECTION_RANGE.1).contains(&m) || !(m > 0.0 && m.is_finite()) {
+        if !(m > 0.0 && m.is_finite()) {
             return None;
         }
         let e = -(m.log2().floor() as i32);
@@ -49,10 +59,6 @@ impl Ray {
         Some((Ray::new(self.origin, dir), e))
     }
 }
-
-/// The largest direction component below which, or at or above which, queries work on the ray
-/// rescaled by [`Ray::in_working_range`].
-const DIRECTION_RANGE: (f64, f64) = (1e-100, 1e100);
 
 /// `x 2^k`, exact barring overflow and underflow, for `|k|` up to 2046 (in two steps, since
 /// `2^k` alone may be out of range).

@@ -1618,13 +1618,15 @@ mod tests {
     }
 
     /// Directions of any size give the same hits: a direction scaled by `2^k` (exact), for `|k|`
-    /// from 340 to 1000 (beyond `1e100`, where queries rescale it), has every hit of the
-    /// unit-sized one (largest component in `[1, 2)`) to the last bit, its `t` scaled by `2^-k` (where that stays a normal number), from
+    /// from 340 to 1000 (`|d|^2` beyond `1e200` or below `1e-200`, where queries rescale it),
+    /// has every hit of the unit-sized one (largest component in `[1, 2)`) to the last bit, its
+    /// `t` scaled by `2^-k` (where that stays a normal number), from
     /// [`GeneralizedCylinder::intersect_all`], `intersect`, `any_hit` and
     /// `enters_nowhere_after` alike; round, tapered, elliptical and three-lobed fibers, rays
     /// from the surface, inside and outside. And directions scaled by `1e-200`, `1e-30`, `1e30`
-    /// and `1e200` (rounded) have as many hits beyond `1e-9` of the origin, at `u` within `1e-9`. (Before, `|d|^2` overflowed beyond
-    /// about `1e154` and underflowed below `1e-154`: no hits.)
+    /// and `1e200` (rounded) have as many hits beyond `1e-9` of the origin, at `u` within
+    /// `1e-9`. (Before, `|d|^2` overflowed beyond about `1e154` and underflowed below `1e-154`:
+    /// no hits.)
     #[test]
     fn hits_do_not_depend_on_the_direction_size() {
         let mut rng = Rng(41);
