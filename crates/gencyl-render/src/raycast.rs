@@ -164,30 +164,25 @@ pub fn cast(
     out: &mut Vec<SceneHit>,
     scratch: &mut Scratch,
 ) {
-    // A direction far from unit size is scaled by a power of two (exact), so that the walk's
-    // squared lengths neither overflow nor underflow; `t` is scaled back.
+    // A direction far from unit size is scaled by a power of two, so that the walk's squared
+    // lengths neither overflow nor underflow, and `t` scaled back (exactly: the window keeps
+    // it a normal `f64`).
     let (ray, e) = ray.in_working_range().unwrap_or((*ray, 0));
-    let scale = times_power_of_two;
+    let (tmin, tmax) = if e == 0 {
+        (tmin, f64::INFINITY)
+    } else {
+        Ray::working_window(tmin, f64::INFINITY, e)
+    };
     let start = out.len();
-    let tmin = scale(tmin, -e);
     if all {
-        scene.all_hits(&ray, tmin, f64::INFINITY, out, scratch);
-    } else if let Some(h) = scene.nearest_hit(&ray, tmin, f64::INFINITY, scratch) {
+        scene.all_hits(&ray, tmin, tmax, out, scratch);
+    } else if let Some(h) = scene.nearest_hit(&ray, tmin, tmax, scratch) {
         out.push(h);
     }
     if e != 0 {
         for h in &mut out[start..] {
-            h.hit.t = scale(h.hit.t, e);
+            h.hit.t = times_power_of_two(h.hit.t, e);
         }
-        // A t beyond f64 range after scaling back is not a usable hit.
-        let mut k = start;
-        for j in start..out.len() {
-            if out[j].hit.t.is_finite() {
-                out[k] = out[j];
-                k += 1;
-            }
-        }
-        out.truncate(k);
     }
 }
 

@@ -35,10 +35,12 @@ impl Ray {
 
     /// Where `|dir|^2` lies outside `[1e-200, 1e200)` (it overflows beyond about `1e154`,
     /// underflows below `1e-154`): the same ray with its direction scaled by the power of two
-    /// `2^e` that puts its largest component in `[1, 2)` (exact), and `e`; `None` for other
-    /// directions (and for zero, infinite or NaN ones, which no query answers). A point `t'`
-    /// of the scaled ray is `t = t' 2^e` of this one: `o + t' (d 2^e) = o + t d`
-    /// ([`times_power_of_two`]).
+    /// `2^e` that puts its largest component in `[1, 2)`, and `e`; `None` for other directions
+    /// (and for zero ones and those with an infinite or NaN component, which no query
+    /// answers). The scaling is exact but for components it takes below `f64`'s normal range
+    /// (those `2^-1022` of the largest or less, which keep a subnormal's precision). A point
+    /// `t'` of the scaled ray is `t = t' 2^e` of this one: `o + t' (d 2^e) = o + t d`
+    /// ([`times_power_of_two`], [`Ray::working_window`]).
     #[inline]
     pub fn in_working_range(&self) -> Option<(Ray, i32)> {
         if (1e-200..1e200).contains(&self.dir.length_squared()) {
@@ -51,12 +53,29 @@ impl Ray {
     #[inline(never)]
     fn rescaled(&self) -> Option<(Ray, i32)> {
         let m = self.dir.abs().max_element();
-        if !(m > 0.0 && m.is_finite()) {
+        if !(m > 0.0 && self.dir.is_finite()) {
             return None;
         }
         let e = -(m.log2().floor() as i32);
         let dir = self.dir.map(|x| times_power_of_two(x, e));
         Some((Ray::new(self.origin, dir), e))
+    }
+
+    /// The range `(tmin, tmax)` of this ray as the scaled ray's of [`Self::in_working_range`]
+    /// (scale `2^e`), narrowed so that every `t'` within it is `t = t' 2^e` exactly, a normal
+    /// `f64`: below `f64::MAX`, and at least `f64::MIN_POSITIVE` where `tmin >= 0` (a hit
+    /// nearer than that to the origin, which only a direction beyond `1e300` or so can give,
+    /// is not reported).
+    pub fn working_window(tmin: f64, tmax: f64, e: i32) -> (f64, f64) {
+        let low = if tmin >= 0.0 {
+            tmin.max(f64::MIN_POSITIVE)
+        } else {
+            tmin
+        };
+        (
+            times_power_of_two(low, -e),
+            times_power_of_two(tmax.min(f64::MAX), -e),
+        )
     }
 }
 

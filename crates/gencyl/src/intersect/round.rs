@@ -291,8 +291,8 @@ impl Cell {
 }
 
 /// Isolates the roots of branch `sign` on the stretch `[a, b]` (where `D >= 0`), ascending.
-/// Returns whether every root is certified: false where a cell too narrow (or past the budget)
-/// to split further may hold a root that its ends' signs do not show, or more than one.
+/// Returns false where a cell too narrow (or past the budget) to split further may hold a root
+/// that its ends' signs do not show, or more than one, or where `out` had no room for a root.
 fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16>) -> bool {
     let mut sure = true;
     let value = |s: f64| k.branch(s, sign);
@@ -781,9 +781,9 @@ impl Deferred {
         (*w, holds)
     }
 
-    /// Polishes cell `i` into `out` (as [`roots`] would have given its roots); where they are
-    /// not certified and the ray is oblique to the cell's `u` range, returns that range and
-    /// whether `a'.d > 0` there instead, for the Radial method's isolation.
+    /// Polishes cell `i` into `out` (as [`roots`] would have given its roots); where
+    /// [`subdivided`] leaves the cell's `u` range to the Radial method, returns that range and
+    /// whether `a'.d > 0` there instead.
     pub(crate) fn polish<C: CrossSection, S: SweepRule>(
         &self,
         i: usize,
@@ -805,12 +805,18 @@ impl Deferred {
 }
 
 /// The roots on the part `[ua, ub]` of the `u` range `[u0, u1]` (whose polynomials are `k`) by
-/// the subdivision of both branches ([`stretch_roots`]), into `out`; where it cannot certify
-/// them (the branch functions nearly vanish along the whole part: a ray nearly parallel to a
-/// nearly straight tapered axis) and the ray is oblique to the part, nothing, and returns the
-/// part and whether `a'.d > 0` there: the Radial method's normal-plane function
-/// (`|e(u)|^2 / r(u)^2 - 1`, `e(u)` the ray's point in the normal plane at `u` less `a(u)`) has
-/// simple roots there, which its isolation certifies.
+/// the subdivision of both branches ([`stretch_roots`]), into `out`; or, where the subdivision
+/// met a cell it could not resolve, on a part whose radius varies (by more than `1e-8` of
+/// itself and `1e-12` of the coordinates: far above the rounding of the distance from the
+/// axis) and that lies within 60 degrees of the ray ([`NEARLY_ALONG`]), nothing, and returns
+/// the part and whether `a'.d > 0` there. That is a ray nearly parallel to a nearly straight
+/// tapered axis, where the branch functions nearly vanish along the whole part but the Radial
+/// method's normal-plane function (`|e(u)|^2 / r(u)^2 - 1`, `e(u)` the ray's point in the
+/// normal plane at `u` less `a(u)`) changes by the taper's share, far beyond its rounding and
+/// its tangent tolerance (`1e-9` of its scale): its sign changes are the crossings. (Not on a
+/// constant radius: a ray lying in the surface makes that function zero to rounding along the
+/// whole part, and its isolation would report sign changes everywhere; nor on nearly
+/// perpendicular rays, whose shallow grazes that tolerance would merge into one touch.)
 fn subdivided<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     d: DVec3,
@@ -820,21 +826,31 @@ fn subdivided<C: CrossSection, S: SweepRule>(
     out: &mut SideRoots,
 ) -> Option<((f64, f64), bool)> {
     let span = u1 - u0;
-    let (found, sure) = stretch_roots(k, (ua - u0) / span, (ub - u0) / span);
-    if !sure && let Some(rising) = cyl.obliquity(d, ua, ub) {
+    let (sa, sb) = ((ua - u0) / span, (ub - u0) / span);
+    let (found, sure) = stretch_roots(k, sa, sb);
+    let [r0, r1] = k.radius;
+    let change = (r1 - r0).abs() * (sb - sa);
+    let tapered = change > 1e-8 * r0.abs().max(r1.abs()) + 1e-12 * k.z.magnitude();
+    if !sure
+        && tapered
+        && let Some(rising) = cyl.obliquity_at_least(d, ua, ub, NEARLY_ALONG)
+    {
         return Some(((ua, ub), rising));
     }
     push_all(cyl, d, k, (u0, u1), d.length(), &found, out);
     None
 }
 
+/// How oblique a range must be for [`subdivided`] to leave it to the Radial method: `|a'.d|`
+/// at least half of `max|a'| |d|` on it.
+const NEARLY_ALONG: f64 = 0.5;
+
 /// The side roots of a round fiber for the local ray `o + w d` on the `u` range `[u0, u1]`:
 /// polished into `out`, or where `deferred` has room and [`tube_cells`] or the product method
 /// isolates them, left there as cells. With `entries_after = Some(w_min)` (a query that wants
 /// only entries beyond `w_min`, on a tube: [`GeneralizedCylinder::intersect_first_entering_with`])
-/// a range that [`no_entry_after`] clears is left at once. Returns `Some(a'.d > 0)` where none
-/// of these certifies the range's roots and the ray is oblique to it ([`subdivided`]): nothing
-/// is pushed then, and the caller isolates the range by the Radial method.
+/// a range that [`no_entry_after`] clears is left at once. Returns `Some(a'.d > 0)` where
+/// [`subdivided`] leaves the range to the Radial method (nothing is pushed then).
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
@@ -1169,7 +1185,8 @@ fn push_all<C: CrossSection, S: SweepRule>(
 
 /// The roots on `[a, b]` of both branches as `(s, sign)`, each branch on each stretch where
 /// `D >= 0` (between the roots of `D`) by [`branch_roots`]: the method for any angle, and
-/// whether [`branch_roots`] certified them all.
+/// whether [`branch_roots`] resolved every cell and kept every root (not a certificate: a
+/// stretch is taken or skipped by `D`'s value at its middle).
 fn stretch_roots(k: &Polys, a: f64, b: f64) -> (ArrayVec<(f64, f64), 16>, bool) {
     let mut ends: ArrayVec<f64, 18> = ArrayVec::new();
     ends.push(a);
