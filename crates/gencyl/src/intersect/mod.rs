@@ -781,8 +781,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         if method == Method::Round {
             for (a, b) in prefilter::candidate_ranges(self, o, d, |_, _| true) {
                 let range = widen(a, b, lo, hi);
-                if let Some(rising) = round::roots(self, o, d, range, entries_after, out, deferred)
-                {
+                let left = round::roots(self, o, d, range, entries_after, out, deferred);
+                if let Some((range, rising)) = left {
                     radial_cells.add(self, (o, d), range, rising, out);
                 }
             }

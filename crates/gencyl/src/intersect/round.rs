@@ -849,8 +849,9 @@ const NEARLY_ALONG: f64 = 0.5;
 /// polished into `out`, or where `deferred` has room and [`tube_cells`] or the product method
 /// isolates them, left there as cells. With `entries_after = Some(w_min)` (a query that wants
 /// only entries beyond `w_min`, on a tube: [`GeneralizedCylinder::intersect_first_entering_with`])
-/// a range that [`no_entry_after`] clears is left at once. Returns `Some(a'.d > 0)` where
-/// [`subdivided`] leaves the range to the Radial method (nothing is pushed then).
+/// a range that [`no_entry_after`] clears is left at once. Returns the range and whether
+/// `a'.d > 0` there where [`subdivided`] leaves it to the Radial method (nothing is pushed
+/// then).
 pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     o: DVec3,
@@ -859,7 +860,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     entries_after: Option<f64>,
     out: &mut SideRoots,
     deferred: &mut Deferred,
-) -> Option<bool> {
+) -> Option<((f64, f64), bool)> {
     let r = range_radius(cyl, (u0, u1))?;
     let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d);
     let len = d.length();
@@ -876,7 +877,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     if cyl.may_fold() || tube_cells(&k, &mut cells).is_none() {
         cells.clear();
         if product_cells(&k, &mut cells).is_none() {
-            return subdivided(cyl, d, &k, (u0, u1), (u0, u1), out).map(|(_, rising)| rising);
+            return subdivided(cyl, d, &k, (u0, u1), (u0, u1), out);
         }
     }
     if cells.is_empty() {
@@ -895,7 +896,7 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     }
     let mut found = ArrayVec::new();
     if settle_all(&k, &cells, &mut found).is_none() {
-        return subdivided(cyl, d, &k, (u0, u1), (u0, u1), out).map(|(_, rising)| rising);
+        return subdivided(cyl, d, &k, (u0, u1), (u0, u1), out);
     }
     push_all(cyl, d, &k, (u0, u1), len, &found, out);
     None
