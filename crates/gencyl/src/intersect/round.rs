@@ -25,7 +25,11 @@
 //! exactly one root where `D > 0` and none elsewhere ([`tube_cells`]). Rounding: every
 //! coefficient is within `SLACK` times its polynomial's largest coefficient of its exact value
 //! (they come from convex combinations of the control points, de Casteljau steps and short
-//! sums), and every enclosure is widened by that.
+//! sums), plus what the control points' own absolute rounding makes of it
+//! ([`coordinate_error`]), and every enclosure is widened by that. A shallow graze can dip
+//! below that bound on the prefilter's range (it is relative to the range's `X^2 + Y^2`); where
+//! the subdivision finds nothing there, the polynomials are formed again on the narrow parts
+//! where `D` nears zero ([`zoom`]).
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
@@ -82,6 +86,24 @@ struct Polys {
     radius: [f64; 2],
 }
 
+/// The size of the coordinates a range's ray-space polynomials are formed from: the largest
+/// coordinate `|p_ik|` of the cylinder's axis' control points (a range's control points are
+/// blossoms of them) plus that of `o`, the local ray's origin (each length is at most `sqrt 3`
+/// times it).
+fn coordinate_size(axis: &[DVec3; 4], o: DVec3) -> f64 {
+    let largest = |p: DVec3| p.abs().max_element();
+    axis.iter().fold(0.0f64, |m, &p| m.max(largest(p))) + largest(o)
+}
+
+/// The absolute rounding of the ray-space control points `(p_i - o).e` of a range, for
+/// coordinates of size `size` ([`coordinate_size`]): the blossoms `p_i` are off by a few units
+/// of the axis' size (three levels of convex combinations), `p_i - o` by a unit more, and the
+/// dot product with a unit vector rounded to a unit or two by a few: 16 units of the lengths,
+/// `32 eps size` (`16 sqrt 3 < 32`).
+fn coordinate_error(size: f64) -> f64 {
+    32.0 * f64::EPSILON * size
+}
+
 /// A relative margin for a crossing's `z` near `z` on a fiber of radius `r_max`, far above
 /// its `f64` rounding: `1e-9 (|z| + r_max)`.
 fn relative_margin(z: f64, r_max: f64) -> f64 {
@@ -113,16 +135,23 @@ fn ray_coords(axis: [DVec3; 4], o: DVec3, d: DVec3) -> [Bernstein<4>; 3] {
 }
 
 /// `D = r^2 - X^2 - Y^2` for the radius `r` (linear from `r[0]` to `r[1]`), and its rounding
-/// bound `SLACK (|X^2| + |Y^2| + |r^2|)` (each by its largest coefficient).
+/// bound: `SLACK (|X^2| + |Y^2| + |r^2|)` (each by its largest coefficient) for the products
+/// and sums, and `2 e (|X| + |Y| + e)` for `X`'s and `Y`'s own absolute rounding `e`
+/// ([`coordinate_error`]); `across` is `|X| + |Y|`.
 #[inline]
-fn discriminant(x: &Bernstein<4>, y: &Bernstein<4>, r: [f64; 2]) -> (B7, f64) {
+fn discriminant(
+    x: &Bernstein<4>,
+    y: &Bernstein<4>,
+    r: [f64; 2],
+    (e, across): (f64, f64),
+) -> (B7, f64) {
     let rr = Bernstein([r[0], r[1]]);
     let r2: B3 = rr.mul(&rr);
     let (xx, yy): (B7, B7) = (x.mul(x), y.mul(y));
     let disc = r2.elevate::<7>().sub(&xx).sub(&yy);
     (
         disc,
-        SLACK * (xx.magnitude() + yy.magnitude() + r2.magnitude()),
+        SLACK * (xx.magnitude() + yy.magnitude() + r2.magnitude()) + 2.0 * e * (across + e),
     )
 }
 
@@ -143,15 +172,25 @@ impl Balls<'_> {
 }
 
 impl Polys {
-    fn new(axis: [DVec3; 4], r: [f64; 2], o: DVec3, d: DVec3) -> Self {
+    /// The polynomials of the range whose axis' control points are `axis` (local coordinates),
+    /// for the local ray `o + w d`; `size` is the coordinates' size ([`coordinate_size`]).
+    ///
+    /// Besides their relative rounding (`SLACK`), the ray-space control points carry an
+    /// absolute one, `e = coordinate_error(size)`, which narrow ranges make dominant (there
+    /// `X` and `Y` are as small as the radius, but still rounded to units of the coordinates):
+    /// `D = r^2 - X^2 - Y^2` is off by `2 e (max|X| + max|Y|) + 2 e^2` more, `P = X X' + Y Y'` by
+    /// `e (max|X'| + max|Y'|) + 6 e (max|X| + max|Y|) <= 12 e (max|X| + max|Y|)` (`X'`'s
+    /// coefficients are three times differences of `X`'s, each off by `2 e`), `Z'` by `6 e`.
+    fn new(axis: [DVec3; 4], r: [f64; 2], o: DVec3, d: DVec3, size: f64) -> Self {
         let [x, y, z] = ray_coords(axis, o, d);
         let (xs, ys, z_s): (B3, B3, B3) = (x.derivative(), y.derivative(), z.derivative());
-        let (disc, err_disc) = discriminant(&x, &y, r);
+        let (e, across) = (coordinate_error(size), x.magnitude() + y.magnitude());
+        let (disc, err_disc) = discriminant(&x, &y, r, (e, across));
         let (px, py): (B6, B6) = (x.mul(&xs), y.mul(&ys));
         let p = px.add(&py);
         let scale = |m: f64| SLACK * m;
-        let err_p = scale(px.magnitude() + py.magnitude());
-        let err_z = scale(z_s.magnitude());
+        let err_p = scale(px.magnitude() + py.magnitude()) + 12.0 * e * across;
+        let err_z = scale(z_s.magnitude()) + 6.0 * e;
         let p_s: B5 = p.derivative();
         let slope_lo = bounds(&p_s, 10.0 * err_p).lo;
         let distance_convex = r[0] == r[1] && slope_lo > 0.0;
@@ -861,23 +900,49 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     out: &mut SideRoots,
     deferred: &mut Deferred,
 ) -> Option<((f64, f64), bool)> {
+    let size = coordinate_size(&cyl.axis.points, o);
+    roots_in(cyl, (o, d, size), (u0, u1), entries_after, out, deferred, 0)
+}
+
+/// [`roots`] on the range `[u0, u1]`, `depth` zooms ([`zoom`]) below the prefilter's range.
+fn roots_in<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (o, d, size): (DVec3, DVec3, f64),
+    (u0, u1): (f64, f64),
+    entries_after: Option<f64>,
+    out: &mut SideRoots,
+    deferred: &mut Deferred,
+    depth: usize,
+) -> Option<((f64, f64), bool)> {
     let r = range_radius(cyl, (u0, u1))?;
-    let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d);
+    let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d, size);
     let len = d.length();
+    // The subdivision, and where it finds nothing, a closer look at where `D` nears zero.
+    let subdivide = |out: &mut SideRoots, deferred: &mut Deferred| {
+        let before = out.len();
+        let left = subdivided(cyl, d, &k, (u0, u1), (u0, u1), out);
+        if left.is_some() || out.len() > before {
+            return left;
+        }
+        let ray = (o, d, size);
+        zoom(cyl, ray, &k, (u0, u1), entries_after, out, deferred, depth)
+    };
     if entries_after.is_some_and(|w_min| {
         no_entry_after(k.balls(), w_min * len, r[0].abs().max(r[1].abs()), None)
     }) {
         return None;
     }
-    if let Some(s) = level_crossing(cyl, o, d, (u0, u1), &k) {
-        push_all(cyl, d, &k, (u0, u1), len, &s, out);
+    if let Some(crossing) = level_crossing(cyl, o, d, (u0, u1), &k) {
+        if let Some((u, w)) = crossing {
+            push(cyl, d, u, w, out);
+        }
         return None;
     }
     let mut cells = ArrayVec::new();
     if cyl.may_fold() || tube_cells(&k, &mut cells).is_none() {
         cells.clear();
         if product_cells(&k, &mut cells).is_none() {
-            return subdivided(cyl, d, &k, (u0, u1), (u0, u1), out);
+            return subdivide(out, deferred);
         }
     }
     if cells.is_empty() {
@@ -896,17 +961,82 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     }
     let mut found = ArrayVec::new();
     if settle_all(&k, &cells, &mut found).is_none() {
-        return subdivided(cyl, d, &k, (u0, u1), (u0, u1), out);
+        return subdivide(out, deferred);
     }
     push_all(cyl, d, &k, (u0, u1), len, &found, out);
     None
 }
 
+/// Most times [`zoom`] forms a range's polynomials again on a narrower part.
+const ZOOM_LEVELS: usize = 4;
+
+/// The cells (as parts of the range) [`zoom`] looks for `D`'s band with.
+const ZOOM_CELL: f64 = 1.0 / 64.0;
+
+/// Where the subdivision found no root on the range `[u0, u1]` (polynomials `k`) but `D` may
+/// come within its rounding bound of zero (a shallow graze: the ray dips into the ball about
+/// the axis by less than the rounding of `D = r^2 - X^2 - Y^2`, which is relative to the
+/// range's `X^2 + Y^2`), the roots of the parts of the range where it may, each formed again
+/// from its own control points ([`roots_in`]): there `X` and `Y` are smaller, and so is `D`'s
+/// rounding bound, about quadratically in the part's width (until the coordinates' own
+/// rounding, [`coordinate_error`], dominates it). The parts: the cells of `[0, 1]` (halved
+/// down to [`ZOOM_CELL`]) where `D`'s coefficients reach `-err_D`, merged, if they are at most
+/// two and cover at most a quarter of the range (a ray along the surface has `D` near zero
+/// on all of it, which no narrower part resolves better); at most [`ZOOM_LEVELS`] deep.
+/// Returns a part the Radial method should take, as [`roots`] does (the first, where two do).
+#[allow(clippy::too_many_arguments)]
+fn zoom<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    ray: (DVec3, DVec3, f64),
+    k: &Polys,
+    (u0, u1): (f64, f64),
+    entries_after: Option<f64>,
+    out: &mut SideRoots,
+    deferred: &mut Deferred,
+    depth: usize,
+) -> Option<((f64, f64), bool)> {
+    if depth >= ZOOM_LEVELS {
+        return None;
+    }
+    let floor = -k.err_disc;
+    let mut parts: ArrayVec<(f64, f64), 2> = ArrayVec::new();
+    let mut stack: ArrayVec<(B7, f64, f64), 16> = ArrayVec::new();
+    stack.push((k.disc, 0.0, 1.0));
+    while let Some((b, s0, s1)) = stack.pop() {
+        if b.range().1 < floor {
+            continue;
+        }
+        if s1 - s0 > ZOOM_CELL {
+            let (l, r) = b.split(0.5);
+            let m = 0.5 * (s0 + s1);
+            stack.push((r, m, s1));
+            stack.push((l, s0, m));
+            continue;
+        }
+        match parts.last_mut() {
+            Some(last) if last.1 == s0 => last.1 = s1,
+            _ => parts.try_push((s0, s1)).ok()?,
+        }
+    }
+    if parts.iter().map(|(a, b)| b - a).sum::<f64>() > 0.25 {
+        return None;
+    }
+    let span = u1 - u0;
+    let at = |s: f64| if s == 1.0 { u1 } else { u0 + span * s };
+    let mut left = None;
+    for (a, b) in parts {
+        let part = (at(a), at(b));
+        let l = roots_in(cyl, ray, part, entries_after, out, deferred, depth + 1);
+        left = left.or(l);
+    }
+    left
+}
+
 /// The side crossings of a range where `P = X X' + Y Y'` is so small that every crossing has
 /// `D` below its rounding bound (the axis keeps its distance from the ray: a ray parallel, or
-/// parallel but for the rounding of the inputs, to a straight axis) and the radius varies, as
-/// `(s, sign)`; `None` where that is not the case, or the answer is not certified (the other
-/// methods then decide). On an independent review's 13,205 parallel and nearly parallel rays
+/// parallel but for the rounding of the inputs, to a straight axis) and the radius varies:
+/// `Some(Some((u, w)))` for the one crossing, `Some(None)` where there is none; `None` where
+/// that is not the case, or the answer is not certified (the other methods then decide). On an independent review's 13,205 parallel and nearly parallel rays
 /// (tilts 0 and 1e-16 to 1e-5; straight tapered fibers to 1e8 from the origin, tapers from
 /// `1 + 1e-9` to `1e6`) against a dense scan of the normal-plane function: no extra or
 /// misplaced crossing (radius at the hit within 3e-12 of the truth); 142 missed, against 2,802
@@ -929,7 +1059,7 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
     d: DVec3,
     (u0, u1): (f64, f64),
     k: &Polys,
-) -> Option<ArrayVec<(f64, f64), 16>> {
+) -> Option<Option<(f64, f64)>> {
     let [r0, r1] = k.radius;
     if r0 == r1 {
         return None;
@@ -954,7 +1084,7 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
     let below = |x: f64| x < -k.err_disc;
     if above(d0) && above(d1) || below(d0) && below(d1) {
         // `D` monotone: beyond the crossings' band on the whole range, so none.
-        return Some(ArrayVec::new());
+        return Some(None);
     }
     if !(above(d0) && below(d1) || below(d0) && above(d1)) {
         return None;
@@ -975,10 +1105,11 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
     let axis = &cyl.axis;
     let span = u1 - u0;
     let u_star = u0 + span * s;
+    let w_at = |a: DVec3, a1: DVec3| (a - o).dot(a1) / d.dot(a1);
     let f = |u: f64| -> (f64, f64) {
         let (a, a1) = (axis.point(u), axis.d1(u));
         let along = d.dot(a1);
-        let w = (a - o).dot(a1) / along;
+        let w = w_at(a, a1);
         let e = o + w * d - a;
         let r = (r0 + (r1 - r0) * ((u - u0) / span)).abs();
         let over_cos = d.length() * a1.length() / along.abs();
@@ -997,9 +1128,10 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
     if !(fa.abs() > ea && fb.abs() > eb && (fa > 0.0) != (fb > 0.0)) {
         return None;
     }
-    let mut found = ArrayVec::new();
-    found.push((s, -1.0));
-    Some(found)
+    // The crossing's `w` where the ray meets the normal plane at `u*` (the range is oblique to
+    // the ray: well conditioned), not `Z - sqrt(D)` (`D` is known there only to its rounding,
+    // and its square root is off by `sqrt(err_D)`).
+    Some(Some((u_star, w_at(axis.point(u_star), axis.d1(u_star)))))
 }
 
 /// A round fiber's radius at the ends of the `u` range `[u0, u1]`; `None` unless the rule
@@ -1034,7 +1166,8 @@ pub(crate) fn range_enters_nowhere_after<C: CrossSection, S: SweepRule>(
     };
     // Only `Z` and `D`: the rest of the range's `Polys` would be half the work.
     let [x, y, z] = ray_coords(cyl.axis.segment(u0, u1).points, o, d);
-    let (disc, err_disc) = discriminant(&x, &y, r);
+    let e = coordinate_error(coordinate_size(&cyl.axis.points, o));
+    let (disc, err_disc) = discriminant(&x, &y, r, (e, x.magnitude() + y.magnitude()));
     let k = Balls {
         z: &z,
         disc: &disc,
@@ -1317,7 +1450,7 @@ mod tests {
             let h = 30.0 * r0;
             let (u0, u1) = ((s - h).max(0.0), (s + h).min(1.0));
             let piece = crate::curve::CubicBezier::new(axis).segment(u0, u1);
-            let k = Polys::new(piece.points, r, o, d);
+            let k = Polys::new(piece.points, r, o, d, coordinate_size(&axis, o));
             let Some(fast) = product_roots(&k) else {
                 continue;
             };
@@ -1356,7 +1489,7 @@ mod tests {
         let d = DVec3::new(1.0, 0.0, 6e-4f64.sqrt());
         let o = DVec3::new(-0.2, 8e-5f64.sqrt(), 0.0) - 0.5 * d;
         for (r, crossings) in [([0.01, 0.03], 2), ([0.01, 0.01], 0)] {
-            let k = Polys::new(axis, r, o, d);
+            let k = Polys::new(axis, r, o, d, coordinate_size(&axis, o));
             assert!(k.disc.0[0] < 0.0 && k.disc.0[6] < 0.0 && k.p.0.iter().all(|&c| c > 0.0));
             let slow = subdivision_roots(&k);
             assert_eq!(slow.len(), crossings, "radii {r:?}: {slow:?}");
@@ -1478,7 +1611,9 @@ mod tests {
                 ((s - h).max(0.0), (s + h).min(1.0))
             };
             let piece = cyl.axis.segment(u0, u1);
-            let k = Polys::new(piece.points, [radius(u0), radius(u1)], o - cyl.origin, d);
+            let o = o - cyl.origin;
+            let size = coordinate_size(&cyl.axis.points, o);
+            let k = Polys::new(piece.points, [radius(u0), radius(u1)], o, d, size);
             let mut cells = ArrayVec::new();
             if tube_cells(&k, &mut cells).is_none() {
                 left += 1;
