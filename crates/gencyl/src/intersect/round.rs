@@ -25,11 +25,15 @@
 //! exactly one root where `D > 0` and none elsewhere ([`tube_cells`]). Rounding: every
 //! coefficient is within `SLACK` times its polynomial's largest coefficient of its exact value
 //! (they come from convex combinations of the control points, de Casteljau steps and short
-//! sums), plus what the control points' own absolute rounding makes of it
-//! ([`coordinate_error`]), and every enclosure is widened by that. A shallow graze can dip
-//! below that bound on the prefilter's range (it is relative to the range's `X^2 + Y^2`); where
-//! the subdivision finds nothing there, the polynomials are formed again on the narrow parts
-//! where `D` nears zero ([`zoom`]).
+//! sums), and every enclosure is widened by that. A shallow graze can dip below that bound on
+//! the prefilter's range (it is relative to the range's `X^2 + Y^2`); where the subdivision
+//! finds nothing there, the polynomials are formed again on the narrow parts where `D` nears
+//! zero ([`zoom`]), whose bounds also carry what the control points' own absolute rounding
+//! makes of them ([`coordinate_error`]: there `X` and `Y` are as small as the graze, but still
+//! rounded to units of the coordinates). (On the prefilter's ranges that term, bounded by
+//! coefficients, `2 e max|X|` where a point's is `2 e |X(s)|`, rose above the dips of shallow
+//! oblique grazes of thin fibers that the relative bound resolves: an independent review found
+//! 14 such crossings lost with it, in 45,812 rays.)
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
@@ -173,7 +177,8 @@ impl Balls<'_> {
 
 impl Polys {
     /// The polynomials of the range whose axis' control points are `axis` (local coordinates),
-    /// for the local ray `o + w d`; `size` is the coordinates' size ([`coordinate_size`]).
+    /// for the local ray `o + w d`; `e` is the control points' absolute rounding where it is
+    /// counted ([`coordinate_error`], on [`zoom`]'s parts), else 0.
     ///
     /// Besides their relative rounding (`SLACK`), the ray-space control points carry an
     /// absolute one, `e = coordinate_error(size)`, which narrow ranges make dominant (there
@@ -181,10 +186,10 @@ impl Polys {
     /// `D = r^2 - X^2 - Y^2` is off by `2 e (max|X| + max|Y|) + 2 e^2` more, `P = X X' + Y Y'` by
     /// `e (max|X'| + max|Y'|) + 6 e (max|X| + max|Y|) <= 12 e (max|X| + max|Y|)` (`X'`'s
     /// coefficients are three times differences of `X`'s, each off by `2 e`), `Z'` by `6 e`.
-    fn new(axis: [DVec3; 4], r: [f64; 2], o: DVec3, d: DVec3, size: f64) -> Self {
+    fn new(axis: [DVec3; 4], r: [f64; 2], o: DVec3, d: DVec3, e: f64) -> Self {
         let [x, y, z] = ray_coords(axis, o, d);
         let (xs, ys, z_s): (B3, B3, B3) = (x.derivative(), y.derivative(), z.derivative());
-        let (e, across) = (coordinate_error(size), x.magnitude() + y.magnitude());
+        let across = x.magnitude() + y.magnitude();
         let (disc, err_disc) = discriminant(&x, &y, r, (e, across));
         let (px, py): (B6, B6) = (x.mul(&xs), y.mul(&ys));
         let p = px.add(&py);
@@ -900,14 +905,14 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     out: &mut SideRoots,
     deferred: &mut Deferred,
 ) -> Option<((f64, f64), bool)> {
-    let size = coordinate_size(&cyl.axis.points, o);
-    roots_in(cyl, (o, d, size), (u0, u1), entries_after, out, deferred, 0)
+    roots_in(cyl, (o, d, 0.0), (u0, u1), entries_after, out, deferred, 0)
 }
 
-/// [`roots`] on the range `[u0, u1]`, `depth` zooms ([`zoom`]) below the prefilter's range.
+/// [`roots`] on the range `[u0, u1]`, `depth` zooms ([`zoom`]) below the prefilter's range; `e`
+/// the control points' absolute rounding counted in the bounds (0 on the prefilter's ranges).
 fn roots_in<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
-    (o, d, size): (DVec3, DVec3, f64),
+    (o, d, e): (DVec3, DVec3, f64),
     (u0, u1): (f64, f64),
     entries_after: Option<f64>,
     out: &mut SideRoots,
@@ -915,7 +920,7 @@ fn roots_in<C: CrossSection, S: SweepRule>(
     depth: usize,
 ) -> Option<((f64, f64), bool)> {
     let r = range_radius(cyl, (u0, u1))?;
-    let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d, size);
+    let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d, e);
     let len = d.length();
     // The subdivision, and where it finds nothing, a closer look at where `D` nears zero.
     let subdivide = |out: &mut SideRoots, deferred: &mut Deferred| {
@@ -924,7 +929,7 @@ fn roots_in<C: CrossSection, S: SweepRule>(
         if left.is_some() || out.len() > before {
             return left;
         }
-        let ray = (o, d, size);
+        let ray = (o, d, e);
         zoom(cyl, ray, &k, (u0, u1), entries_after, out, deferred, depth)
     };
     if entries_after.is_some_and(|w_min| {
@@ -979,7 +984,7 @@ const ZOOM_CELL: f64 = 1.0 / 64.0;
 /// range's `X^2 + Y^2`), the roots of the parts of the range where it may, each formed again
 /// from its own control points ([`roots_in`]): there `X` and `Y` are smaller, and so is `D`'s
 /// rounding bound, about quadratically in the part's width (until the coordinates' own
-/// rounding, [`coordinate_error`], dominates it). The parts: the cells of `[0, 1]` (halved
+/// rounding, [`coordinate_error`], counted on the parts, dominates it). The parts: the cells of `[0, 1]` (halved
 /// down to [`ZOOM_CELL`]) where `D`'s coefficients reach `-err_D`, merged, if they are at most
 /// two and cover at most a quarter of the range (a ray along the surface has `D` near zero
 /// on all of it, which no narrower part resolves better); at most [`ZOOM_LEVELS`] deep.
@@ -987,7 +992,7 @@ const ZOOM_CELL: f64 = 1.0 / 64.0;
 #[allow(clippy::too_many_arguments)]
 fn zoom<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
-    ray: (DVec3, DVec3, f64),
+    (o, d, _): (DVec3, DVec3, f64),
     k: &Polys,
     (u0, u1): (f64, f64),
     entries_after: Option<f64>,
@@ -1026,6 +1031,7 @@ fn zoom<C: CrossSection, S: SweepRule>(
     let mut left = None;
     for (a, b) in parts {
         let part = (at(a), at(b));
+        let ray = (o, d, coordinate_error(coordinate_size(&cyl.axis.points, o)));
         let l = roots_in(cyl, ray, part, entries_after, out, deferred, depth + 1);
         left = left.or(l);
     }
@@ -1166,8 +1172,7 @@ pub(crate) fn range_enters_nowhere_after<C: CrossSection, S: SweepRule>(
     };
     // Only `Z` and `D`: the rest of the range's `Polys` would be half the work.
     let [x, y, z] = ray_coords(cyl.axis.segment(u0, u1).points, o, d);
-    let e = coordinate_error(coordinate_size(&cyl.axis.points, o));
-    let (disc, err_disc) = discriminant(&x, &y, r, (e, x.magnitude() + y.magnitude()));
+    let (disc, err_disc) = discriminant(&x, &y, r, (0.0, 0.0));
     let k = Balls {
         z: &z,
         disc: &disc,
@@ -1450,7 +1455,7 @@ mod tests {
             let h = 30.0 * r0;
             let (u0, u1) = ((s - h).max(0.0), (s + h).min(1.0));
             let piece = crate::curve::CubicBezier::new(axis).segment(u0, u1);
-            let k = Polys::new(piece.points, r, o, d, coordinate_size(&axis, o));
+            let k = Polys::new(piece.points, r, o, d, 0.0);
             let Some(fast) = product_roots(&k) else {
                 continue;
             };
@@ -1489,7 +1494,7 @@ mod tests {
         let d = DVec3::new(1.0, 0.0, 6e-4f64.sqrt());
         let o = DVec3::new(-0.2, 8e-5f64.sqrt(), 0.0) - 0.5 * d;
         for (r, crossings) in [([0.01, 0.03], 2), ([0.01, 0.01], 0)] {
-            let k = Polys::new(axis, r, o, d, coordinate_size(&axis, o));
+            let k = Polys::new(axis, r, o, d, 0.0);
             assert!(k.disc.0[0] < 0.0 && k.disc.0[6] < 0.0 && k.p.0.iter().all(|&c| c > 0.0));
             let slow = subdivision_roots(&k);
             assert_eq!(slow.len(), crossings, "radii {r:?}: {slow:?}");
@@ -1612,8 +1617,7 @@ mod tests {
             };
             let piece = cyl.axis.segment(u0, u1);
             let o = o - cyl.origin;
-            let size = coordinate_size(&cyl.axis.points, o);
-            let k = Polys::new(piece.points, [radius(u0), radius(u1)], o, d, size);
+            let k = Polys::new(piece.points, [radius(u0), radius(u1)], o, d, 0.0);
             let mut cells = ArrayVec::new();
             if tube_cells(&k, &mut cells).is_none() {
                 left += 1;
