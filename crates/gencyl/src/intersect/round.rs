@@ -929,8 +929,16 @@ fn roots_in<C: CrossSection, S: SweepRule>(
         if left.is_some() || out.len() > before {
             return left;
         }
-        let ray = (o, d, e);
-        zoom(cyl, ray, &k, (u0, u1), entries_after, out, deferred, depth)
+        zoom(
+            cyl,
+            (o, d),
+            &k,
+            (u0, u1),
+            entries_after,
+            out,
+            deferred,
+            depth,
+        )
     };
     if entries_after.is_some_and(|w_min| {
         no_entry_after(k.balls(), w_min * len, r[0].abs().max(r[1].abs()), None)
@@ -984,15 +992,16 @@ const ZOOM_CELL: f64 = 1.0 / 64.0;
 /// range's `X^2 + Y^2`), the roots of the parts of the range where it may, each formed again
 /// from its own control points ([`roots_in`]): there `X` and `Y` are smaller, and so is `D`'s
 /// rounding bound, about quadratically in the part's width (until the coordinates' own
-/// rounding, [`coordinate_error`], counted on the parts, dominates it). The parts: the cells of `[0, 1]` (halved
-/// down to [`ZOOM_CELL`]) where `D`'s coefficients reach `-err_D`, merged, if they are at most
-/// two and cover at most a quarter of the range (a ray along the surface has `D` near zero
-/// on all of it, which no narrower part resolves better); at most [`ZOOM_LEVELS`] deep.
+/// rounding, [`coordinate_error`], counted on the parts, dominates it). The parts: the cells
+/// of `[0, 1]` (halved down to [`ZOOM_CELL`]) where `D`'s coefficients reach `-err_D`, merged,
+/// if they are at most two and cover at most a quarter of the range (a ray along the surface
+/// has `D` near zero on all of it, which no narrower part resolves better); at most
+/// [`ZOOM_LEVELS`] deep.
 /// Returns a part the Radial method should take, as [`roots`] does (the first, where two do).
 #[allow(clippy::too_many_arguments)]
 fn zoom<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
-    (o, d, _): (DVec3, DVec3, f64),
+    (o, d): (DVec3, DVec3),
     k: &Polys,
     (u0, u1): (f64, f64),
     entries_after: Option<f64>,
