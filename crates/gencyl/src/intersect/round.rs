@@ -189,7 +189,12 @@ impl Polys {
     fn new(axis: [DVec3; 4], r: [f64; 2], o: DVec3, d: DVec3, e: f64) -> Self {
         let [x, y, z] = ray_coords(axis, o, d);
         let (xs, ys, z_s): (B3, B3, B3) = (x.derivative(), y.derivative(), z.derivative());
-        let across = x.magnitude() + y.magnitude();
+        // (Not needed where `e` is 0: the prefilter's ranges, every query's.)
+        let across = if e > 0.0 {
+            x.magnitude() + y.magnitude()
+        } else {
+            0.0
+        };
         let (disc, err_disc) = discriminant(&x, &y, r, (e, across));
         let (px, py): (B6, B6) = (x.mul(&xs), y.mul(&ys));
         let p = px.add(&py);
@@ -1037,10 +1042,10 @@ fn zoom<C: CrossSection, S: SweepRule>(
     }
     let span = u1 - u0;
     let at = |s: f64| if s == 1.0 { u1 } else { u0 + span * s };
+    let ray = (o, d, coordinate_error(coordinate_size(&cyl.axis.points, o)));
     let mut left = None;
     for (a, b) in parts {
         let part = (at(a), at(b));
-        let ray = (o, d, coordinate_error(coordinate_size(&cyl.axis.points, o)));
         let l = roots_in(cyl, ray, part, entries_after, out, deferred, depth + 1);
         left = left.or(l);
     }
@@ -1051,12 +1056,13 @@ fn zoom<C: CrossSection, S: SweepRule>(
 /// `D` below its rounding bound (the axis keeps its distance from the ray: a ray parallel, or
 /// parallel but for the rounding of the inputs, to a straight axis) and the radius varies:
 /// `Some(Some((u, w)))` for the one crossing, `Some(None)` where there is none; `None` where
-/// that is not the case, or the answer is not certified (the other methods then decide). On an independent review's 13,205 parallel and nearly parallel rays
-/// (tilts 0 and 1e-16 to 1e-5; straight tapered fibers to 1e8 from the origin, tapers from
-/// `1 + 1e-9` to `1e6`) against a dense scan of the normal-plane function: no extra or
-/// misplaced crossing (radius at the hit within 3e-12 of the truth); 142 missed, against 2,802
-/// without this (nearly parallel rays whose crossings' `D` lies above this band but too low
-/// for the branch method to certify: README, Not yet).
+/// that is not the case, or the answer is not certified (the other methods then decide). On
+/// an independent review's 13,205 parallel and nearly parallel rays (tilts 0 and 1e-16 to
+/// 1e-5; straight tapered fibers to 1e8 from the origin, tapers from `1 + 1e-9` to `1e6`)
+/// against a dense scan of the normal-plane function: no extra or misplaced crossing (radius
+/// at the hit within 3e-12 of the truth); 142 missed, against 2,802 without this (nearly
+/// parallel rays whose crossings' `D` lies above this band but too low for the branch method
+/// to certify: README, Not yet).
 ///
 /// There `H± = -P ± Z' sqrt(D)` vanish (exactly parallel) or nearly vanish wherever `D <= 0`,
 /// and the branch functions certify nothing; but `G = P^2 - Z'^2 D = 0` puts every crossing
