@@ -2103,7 +2103,7 @@ mod tests {
     /// the normal-plane function in `u`; its dip is found by golden section about the aimed-at
     /// point and its two roots by bisection. Posed only where the dip lies far below `g`'s
     /// rounding. Before the Round method formed a range's polynomials again about such a dip
-    /// (`round::zoom`), the dip lay below the rounding bound of `D` on the prefilter's range
+    /// (`round::zoom_parts`), the dip lay below the rounding bound of `D` on the prefilter's range
     /// and the subdivision's budget ran out in it: both crossings were lost (220 of 3,539 such
     /// rays with radii `1e-7.5` to `1e-5` in the thirty-third session's independent review
     /// harness; the thirty-fourth's review sweep, 45,812 rays at all angles: 874 crossings

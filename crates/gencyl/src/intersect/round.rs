@@ -28,9 +28,9 @@
 //! sums), and every enclosure is widened by that. A shallow graze can dip below that bound on
 //! the prefilter's range (it is relative to the range's `X^2 + Y^2`); where the subdivision
 //! finds nothing there, the polynomials are formed again on the narrow parts where `D` nears
-//! zero ([`zoom`]), whose bounds also carry what the control points' own absolute rounding
-//! makes of them ([`coordinate_error`]: there `X` and `Y` are as small as the graze, but still
-//! rounded to units of the coordinates). (On the prefilter's ranges that term, bounded by
+//! zero ([`zoom_parts`]), whose bounds also carry what the control points' own absolute
+//! rounding makes of them ([`coordinate_error`]: there `X` and `Y` are as small as the graze,
+//! but still rounded to units of the coordinates). (On the prefilter's ranges that term, bounded by
 //! coefficients, `2 e max|X|` where a point's is `2 e |X(s)|`, rose above the dips of shallow
 //! oblique grazes of thin fibers that the relative bound resolves: an independent review found
 //! 14 such crossings lost with it, in 45,812 rays.)
@@ -178,7 +178,7 @@ impl Balls<'_> {
 impl Polys {
     /// The polynomials of the range whose axis' control points are `axis` (local coordinates),
     /// for the local ray `o + w d`; `e` is the control points' absolute rounding where it is
-    /// counted ([`coordinate_error`], on [`zoom`]'s parts), else 0.
+    /// counted ([`coordinate_error`], on [`zoom_parts`]'s parts), else 0.
     ///
     /// Besides their relative rounding (`SLACK`), the ray-space control points carry an
     /// absolute one, `e = coordinate_error(size)`, which narrow ranges make dominant (there
@@ -913,8 +913,9 @@ pub(crate) fn roots<C: CrossSection, S: SweepRule>(
     roots_in(cyl, (o, d, 0.0), (u0, u1), entries_after, out, deferred, 0)
 }
 
-/// [`roots`] on the range `[u0, u1]`, `depth` zooms ([`zoom`]) below the prefilter's range; `e`
-/// the control points' absolute rounding counted in the bounds (0 on the prefilter's ranges).
+/// [`roots`] on the range `[u0, u1]`, `depth` zooms ([`zoom_parts`]) below the prefilter's
+/// range; `e` the control points' absolute rounding counted in the bounds (0 on the
+/// prefilter's ranges).
 fn roots_in<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     (o, d, e): (DVec3, DVec3, f64),
@@ -934,16 +935,20 @@ fn roots_in<C: CrossSection, S: SweepRule>(
         if left.is_some() || out.len() > before {
             return left;
         }
-        zoom(
-            cyl,
-            (o, d),
-            &k,
-            (u0, u1),
-            entries_after,
-            out,
-            deferred,
-            depth,
-        )
+        if depth >= ZOOM_LEVELS {
+            return None;
+        }
+        // The parts, in `u`, each searched again with its own polynomials and bounds.
+        let span = u1 - u0;
+        let at = |s: f64| if s == 1.0 { u1 } else { u0 + span * s };
+        let ray = (o, d, coordinate_error(coordinate_size(&cyl.axis.points, o)));
+        let mut left = None;
+        for (a, b) in zoom_parts(&k) {
+            let part = (at(a), at(b));
+            let l = roots_in(cyl, ray, part, entries_after, out, deferred, depth + 1);
+            left = left.or(l);
+        }
+        left
     };
     if entries_after.is_some_and(|w_min| {
         no_entry_after(k.balls(), w_min * len, r[0].abs().max(r[1].abs()), None)
@@ -985,38 +990,25 @@ fn roots_in<C: CrossSection, S: SweepRule>(
     None
 }
 
-/// Most times [`zoom`] forms a range's polynomials again on a narrower part.
+/// Most times [`roots_in`] forms a range's polynomials again on a narrower part
+/// ([`zoom_parts`]).
 const ZOOM_LEVELS: usize = 4;
 
-/// The cells (as parts of the range) [`zoom`] looks for `D`'s band with.
+/// The cells (as parts of the range) [`zoom_parts`] looks for `D`'s band with.
 const ZOOM_CELL: f64 = 1.0 / 64.0;
 
-/// Where the subdivision found no root on the range `[u0, u1]` (polynomials `k`) but `D` may
-/// come within its rounding bound of zero (a shallow graze: the ray dips into the ball about
-/// the axis by less than the rounding of `D = r^2 - X^2 - Y^2`, which is relative to the
-/// range's `X^2 + Y^2`), the roots of the parts of the range where it may, each formed again
-/// from its own control points ([`roots_in`]): there `X` and `Y` are smaller, and so is `D`'s
-/// rounding bound, about quadratically in the part's width (until the coordinates' own
-/// rounding, [`coordinate_error`], counted on the parts, dominates it). The parts: the cells
-/// of `[0, 1]` (halved down to [`ZOOM_CELL`]) where `D`'s coefficients reach `-err_D`, merged,
-/// if they are at most two and cover at most a quarter of the range (a ray along the surface
-/// has `D` near zero on all of it, which no narrower part resolves better); at most
-/// [`ZOOM_LEVELS`] deep.
-/// Returns a part the Radial method should take, as [`roots`] does (the first, where two do).
-#[allow(clippy::too_many_arguments)]
-fn zoom<C: CrossSection, S: SweepRule>(
-    cyl: &GeneralizedCylinder<C, S>,
-    (o, d): (DVec3, DVec3),
-    k: &Polys,
-    (u0, u1): (f64, f64),
-    entries_after: Option<f64>,
-    out: &mut SideRoots,
-    deferred: &mut Deferred,
-    depth: usize,
-) -> Option<((f64, f64), bool)> {
-    if depth >= ZOOM_LEVELS {
-        return None;
-    }
+/// Where the subdivision found no root on a range (polynomials `k`) but `D` may come within
+/// its rounding bound of zero (a shallow graze: the ray dips into the ball about the axis by
+/// less than the rounding of `D = r^2 - X^2 - Y^2`, which is relative to the range's `X^2 +
+/// Y^2`), the parts of the range (in `s`) where it may, which [`roots_in`] searches again,
+/// each with polynomials formed from its own control points: there `X` and `Y` are smaller,
+/// and so is `D`'s rounding bound, about quadratically in the part's width (until the
+/// coordinates' own rounding, [`coordinate_error`], counted on the parts, dominates it). The
+/// parts: the cells of `[0, 1]` (halved down to [`ZOOM_CELL`]) where `D`'s coefficients reach
+/// `-err_D`, merged; none unless they are at most two and cover at most a quarter of the range
+/// (a ray along the surface has `D` near zero on all of it, which no narrower part resolves
+/// better).
+fn zoom_parts(k: &Polys) -> ArrayVec<(f64, f64), 2> {
     let floor = -k.err_disc;
     let mut parts: ArrayVec<(f64, f64), 2> = ArrayVec::new();
     let mut stack: ArrayVec<(B7, f64, f64), 16> = ArrayVec::new();
@@ -1034,22 +1026,17 @@ fn zoom<C: CrossSection, S: SweepRule>(
         }
         match parts.last_mut() {
             Some(last) if last.1 == s0 => last.1 = s1,
-            _ => parts.try_push((s0, s1)).ok()?,
+            _ => {
+                if parts.try_push((s0, s1)).is_err() {
+                    return ArrayVec::new();
+                }
+            }
         }
     }
     if parts.iter().map(|(a, b)| b - a).sum::<f64>() > 0.25 {
-        return None;
+        parts.clear();
     }
-    let span = u1 - u0;
-    let at = |s: f64| if s == 1.0 { u1 } else { u0 + span * s };
-    let ray = (o, d, coordinate_error(coordinate_size(&cyl.axis.points, o)));
-    let mut left = None;
-    for (a, b) in parts {
-        let part = (at(a), at(b));
-        let l = roots_in(cyl, ray, part, entries_after, out, deferred, depth + 1);
-        left = left.or(l);
-    }
-    left
+    parts
 }
 
 /// The side crossings of a range where `P = X X' + Y Y'` is so small that every crossing has
