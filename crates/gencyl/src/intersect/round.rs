@@ -975,9 +975,11 @@ fn roots_in<C: CrossSection, S: SweepRule>(
     if !deferred.ranges.is_full() && room {
         let range = deferred.ranges.len();
         let r_max = r[0].abs().max(r[1].abs());
-        for cell in cells {
+        // A query for entries only drops a tube's certain exits unpolished: not kept.
+        let wanted = |c: &&RootCell| entries_after.is_none() || !(c.certain && c.sign > 0.0);
+        for cell in cells.iter().filter(wanted) {
             let bounds = cell.w_range(&k, r_max, len);
-            deferred.cells.push((range, cell, bounds));
+            deferred.cells.push((range, *cell, bounds));
         }
         deferred.ranges.push(DeferredRange { k, u: (u0, u1) });
         return None;
