@@ -75,7 +75,8 @@ struct Polys {
     /// `Z'` and `Z''`.
     z_s: B3,
     z_ss: Bernstein<2>,
-    /// Rounding bounds of `D` (and `D'`), `P` (and `P'`), `Z'`.
+    /// Rounding bounds of `D`, `P` and `Z'` (their derivatives' are 12, 10 and 4 times these:
+    /// `n` times differences of coefficients).
     err_disc: f64,
     err_p: f64,
     err_z: f64,
@@ -363,10 +364,13 @@ fn branch_roots(k: &Polys, a: f64, b: f64, sign: f64, out: &mut ArrayVec<f64, 16
         let narrow =
             c.s1 - c.s0 <= MIN_WIDTH || cells > BUDGET || stack.len() + 2 > stack.capacity();
         // H' = -P' ± (Z'' sqrt(D) + Z' D' / (2 sqrt(D))), bounded only where D > 0 on the cell.
+        // A derivative's coefficients are `n` times differences of its polynomial's, each off
+        // by that one's bound: `D'` (n = 6) by `12 err_D`, `P'` (5) by `10 err_P`, `Z''` (2) by
+        // `4 err_Z'`.
         let monotone = disc.lo > 0.0 && {
-            let dh = Interval::cst(0.0) - bounds(&c.p_s, k.err_p)
-                + (bounds(&c.z_ss, k.err_z) * root
-                    + z_s * bounds(&c.disc_s, k.err_disc) / (root + root))
+            let dh = Interval::cst(0.0) - bounds(&c.p_s, 10.0 * k.err_p)
+                + (bounds(&c.z_ss, 4.0 * k.err_z) * root
+                    + z_s * bounds(&c.disc_s, 12.0 * k.err_disc) / (root + root))
                     * Interval::cst(sign);
             dh.excludes_zero()
         };
