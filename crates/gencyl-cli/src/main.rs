@@ -394,6 +394,11 @@ struct BenchArgs {
     /// Only this thread count (default: 1 and all cores).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
+    /// Also time each ray set's rays that hit and those that miss apart: rows of kind
+    /// `camera-hits`, `camera-misses`, `incoherent-hits` and `incoherent-misses` after the
+    /// set's own (which rays hit is found first, untimed).
+    #[arg(long)]
+    split: bool,
     /// Time the named render instead of the ray sets: the scene's own camera, [render] settings
     /// and lights, on all cores (or --threads); prints wall-clock and CPU seconds.
     #[arg(long)]
@@ -1305,6 +1310,17 @@ fn write_rays(path: &Path, rays: &[gencyl::Ray]) -> Result<()> {
 /// Bench's two ray sets on a scene: `camera`, one ray per pixel centre of `image`, and
 /// `incoherent`, as many rays from a sphere about the fibers' box through random points of it
 /// (a fixed seed).
+/// `rays` parted into those that hit the world (nearest-hit query, as `bench` times it) and
+/// those that miss, each in its order.
+fn split_by_hit(world: &World, rays: &[gencyl::Ray]) -> (Vec<gencyl::Ray>, Vec<gencyl::Ray>) {
+    let mut scratch = Scratch::default();
+    rays.iter().partition(|r| {
+        world
+            .intersect(r, (0.0, f64::INFINITY), None, &mut scratch)
+            .is_some()
+    })
+}
+
 fn bench_ray_sets(
     world: &World,
     camera: Option<gencyl_render::optics::Camera>,
@@ -1495,10 +1511,19 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         let (world, camera) = built.expect("at least one build");
         let n = world.scene.len();
         let [camera_rays, incoherent] = bench_ray_sets(&world, camera, (width, height));
-        for (kind, rays) in [("camera", &camera_rays), ("incoherent", &incoherent)] {
+        let mut sets = Vec::new();
+        for (kind, rays) in [("camera", camera_rays), ("incoherent", incoherent)] {
             if !wanted(&args.kinds, kind) {
                 continue;
             }
+            let parts = args.split.then(|| split_by_hit(&world, &rays));
+            sets.push((kind.to_string(), rays));
+            if let Some((hits, misses)) = parts {
+                sets.push((format!("{kind}-hits"), hits));
+                sets.push((format!("{kind}-misses"), misses));
+            }
+        }
+        for (kind, rays) in &sets {
             for &threads in &thread_counts {
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)

@@ -783,6 +783,61 @@ fn bench_selects_rows() {
     assert!(err.contains("needs --large"), "{err}");
 }
 
+/// `bench --split` follows each ray set's row with rows for its rays that hit and those that
+/// miss: every ray of the first hits, none of the second does, and together they are the set
+/// (as many rays as its hit fraction says hit).
+#[test]
+fn bench_splits_rays_that_hit_from_those_that_miss() {
+    let out = ok(
+        &[
+            "bench",
+            "--rays",
+            "300",
+            "--scene",
+            "default",
+            "--threads",
+            "1",
+            "--split",
+        ],
+        None,
+    );
+    let rows: Vec<Vec<&str>> = out
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let kinds: Vec<&str> = rows.iter().map(|r| r[6]).collect();
+    assert_eq!(
+        kinds,
+        [
+            "camera",
+            "camera-hits",
+            "camera-misses",
+            "incoherent",
+            "incoherent-hits",
+            "incoherent-misses"
+        ],
+        "{out}"
+    );
+    for set in rows.chunks(3) {
+        let count = |r: &[&str]| -> usize { r[8].parse().unwrap() };
+        let fraction = |r: &[&str]| -> f64 { r[10].parse().unwrap() };
+        let (all, hits, misses) = (&set[0], &set[1], &set[2]);
+        assert_eq!(count(hits) + count(misses), count(all), "{out}");
+        assert!(count(hits) > 0 && count(misses) > 0, "both parts: {out}");
+        assert_eq!((fraction(hits), fraction(misses)), (1.0, 0.0), "{out}");
+        let expected = fraction(all) * count(all) as f64;
+        assert!(
+            (count(hits) as f64 - expected).abs() <= 0.5e-3 * count(all) as f64 + 0.5,
+            "{out}"
+        );
+        for r in set {
+            let rate: f64 = r[9].parse().unwrap();
+            assert!(rate > 0.0 && rate.is_finite(), "{r:?}");
+        }
+    }
+}
+
 /// `bench --builds N` reports the same scene (segments, bytes, hit fraction) as one build, with
 /// finite times; zero builds are refused.
 #[test]
