@@ -381,7 +381,8 @@ struct BenchArgs {
     #[arg(long, default_value = "examples/ponytail-trilobal.toml")]
     ponytail_trilobal: PathBuf,
     /// Camera rays per scene (a 4:3 image of about this many pixels, one ray each; at most
-    /// 2^26, whose rays take 3 GiB).
+    /// 2^26, whose rays take 3 GiB a set: the camera and incoherent sets, and with `--split` their
+    /// parts too, are held at once).
     #[arg(long, default_value_t = 76_800, value_parser = clap::value_parser!(u32).range(1..=1 << 26))]
     rays: u32,
     /// Only this scene (`default`, `ponytail`, `ponytail-elliptical`, `ponytail-trilobal`,
@@ -1216,11 +1217,12 @@ fn generate_hair(args: HairArgs) -> Result<()> {
     Ok(())
 }
 
-/// The image `bench` casts about `rays` camera rays through: 4:3, one ray per pixel.
-fn bench_image(rays: u32) -> Result<(u32, u32)> {
+/// The image `bench` casts about `rays` camera rays through: 4:3, one ray per pixel; refused
+/// where the `sets` ray sets of that many rays held at once would not fit in memory.
+fn bench_image(rays: u32, sets: u64) -> Result<(u32, u32)> {
     let width = ((rays as f64 * 4.0 / 3.0).sqrt().round() as u32).max(4);
     let height = (width * 3 / 4).max(3);
-    let bytes = width as u64 * height as u64 * std::mem::size_of::<gencyl::Ray>() as u64;
+    let bytes = sets * width as u64 * height as u64 * std::mem::size_of::<gencyl::Ray>() as u64;
     limits::check_memory(bytes, &format!("--rays {rays}")).map_err(anyhow::Error::msg)?;
     Ok((width, height))
 }
@@ -1269,7 +1271,8 @@ fn export_command(args: ExportArgs) -> Result<()> {
         desc.cylinders.len()
     );
     if args.camera_rays.is_some() || args.incoherent_rays.is_some() {
-        let image = bench_image(args.rays)?;
+        // The camera and incoherent sets.
+        let image = bench_image(args.rays, 2)?;
         let camera = desc.camera;
         let world = World::new(desc);
         let [camera_rays, incoherent] = bench_ray_sets(&world, camera, image);
@@ -1414,7 +1417,8 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     if args.render {
         return bench_render(&args);
     }
-    let (width, height) = bench_image(args.rays)?;
+    // The camera and incoherent sets, and with `--split` their parts as well.
+    let (width, height) = bench_image(args.rays, if args.split { 4 } else { 2 })?;
     if args.large {
         limits::check_memory(
             1_600_000 * limits::PEAK_BYTES_PER_SEGMENT,

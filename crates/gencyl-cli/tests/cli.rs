@@ -1015,6 +1015,31 @@ fn threads_rays_and_strands_are_limited() {
     }
 }
 
+/// `bench --split` holds each ray set's two parts beside the sets: its memory check counts
+/// them, so 2^26 rays (3 GiB a set, 12 GiB in all) are refused at once under an 8.6 GiB
+/// address-space limit, not when an allocation fails midway.
+#[test]
+fn bench_split_counts_the_parts_in_its_memory_check() {
+    let out = Command::new("sh")
+        .args([
+            "-c",
+            "ulimit -v 9000000 && exec \"$0\" \"$@\"",
+            env!("CARGO_BIN_EXE_gencyl"),
+            "bench",
+            "--rays",
+            "67108864",
+            "--scene",
+            "default",
+            "--split",
+        ])
+        .stdin(Stdio::null())
+        .output()
+        .expect("sh runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && out.stdout.is_empty(), "{err}");
+    names(&err, &["--rays 67108864", "needs about 12.0 GiB"]);
+}
+
 #[test]
 fn devices_and_endless_files_are_refused() {
     let s = scene_with("dev.toml", "");
