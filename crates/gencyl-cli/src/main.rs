@@ -1310,9 +1310,6 @@ fn write_rays(path: &Path, rays: &[gencyl::Ray]) -> Result<()> {
     write_atomically(path, text.as_bytes())
 }
 
-/// Bench's two ray sets on a scene: `camera`, one ray per pixel centre of `image`, and
-/// `incoherent`, as many rays from a sphere about the fibers' box through random points of it
-/// (a fixed seed).
 /// `rays` parted into those that hit the world (nearest-hit query, as `bench` times it) and
 /// those that miss, each in its order.
 fn split_by_hit(world: &World, rays: &[gencyl::Ray]) -> (Vec<gencyl::Ray>, Vec<gencyl::Ray>) {
@@ -1324,6 +1321,9 @@ fn split_by_hit(world: &World, rays: &[gencyl::Ray]) -> (Vec<gencyl::Ray>, Vec<g
     })
 }
 
+/// Bench's two ray sets on a scene: `camera`, one ray per pixel centre of `image`, and
+/// `incoherent`, as many rays from a sphere about the fibers' box through random points of it
+/// (a fixed seed).
 fn bench_ray_sets(
     world: &World,
     camera: Option<gencyl_render::optics::Camera>,
