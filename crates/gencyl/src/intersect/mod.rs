@@ -119,7 +119,13 @@ const MAX_CROSSINGS: usize = 64
     + round::MAX_DEFERRED
     + radial_cells::MAX_RADIAL_CELLS * MAX_ROOTS;
 
-/// A crossing at `t`, before or after its hit is finished.
+/// Most finished hits of one ray and one cylinder before the side's ([`Pending::Done`]): two
+/// caps, the fold envelope's roots (at most 8) and one per switch of the Frenet frame (at
+/// most 8).
+const MAX_DONE: usize = 2 + 8 + 8;
+
+/// A crossing at `t`, before or after its hit is finished. (Small, as the list is sorted and
+/// entries move when polished cells are replaced: a finished hit is kept apart.)
 #[derive(Clone, Copy, Debug)]
 struct Crossing {
     t: f64,
@@ -127,11 +133,11 @@ struct Crossing {
 }
 
 /// A side root still without its section angle (for the Round method) and normal, a finished
-/// hit, or a cell left for later (its `t` a lower bound).
+/// hit (its index among the finished ones), or a cell left for later (its `t` a lower bound).
 #[derive(Clone, Copy, Debug)]
 enum Pending {
     Side(SideRoot),
-    Done(Hit),
+    Done(usize),
     Cell(CellRef),
 }
 
@@ -507,9 +513,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 });
             }
         }
-        let done = |hit: Hit| Crossing {
-            t: hit.t,
-            hit: Pending::Done(hit),
+        let mut finished: ArrayVec<Hit, MAX_DONE> = ArrayVec::new();
+        let mut done = |hit: Hit| {
+            let i = finished.len();
+            finished.push(hit);
+            Crossing {
+                t: hit.t,
+                hit: Pending::Done(i),
+            }
         };
         for (part, closed) in [(Part::StartCap, self.caps[0]), (Part::EndCap, self.caps[1])] {
             if let Some((w, v)) = closed.then(|| self.cap_root(o, d, part)).flatten() {
@@ -583,7 +594,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             let c = found[next];
             next += 1;
             let h = match c.hit {
-                Pending::Done(h) => h,
+                Pending::Done(i) => finished[i],
                 Pending::Side(r) => self.finish_side(ray, (o, d), c.t, r, round),
                 Pending::Cell(cell) => {
                     let ([w, w_upper], holds) = match cell {

@@ -66,15 +66,13 @@ type B11 = Bernstein<11>;
 struct Polys {
     /// The axis' coordinate along the ray.
     z: Bernstein<4>,
-    /// `D = r^2 - X^2 - Y^2` and `D'`.
+    /// `D = r^2 - X^2 - Y^2` (`D'`: [`Self::disc_s`]).
     disc: B7,
-    disc_s: B6,
     /// `P = X X' + Y Y'` and `P'`.
     p: B6,
     p_s: B5,
-    /// `Z'` and `Z''`.
+    /// `Z'` (`Z''`: [`Self::z_ss`]).
     z_s: B3,
-    z_ss: Bernstein<2>,
     /// Rounding bounds of `D`, `P` and `Z'` (their derivatives' are 12, 10 and 4 times these:
     /// `n` times differences of coefficients).
     err_disc: f64,
@@ -207,11 +205,9 @@ impl Polys {
         let distance_convex = r[0] == r[1] && slope_lo > 0.0;
         Polys {
             z,
-            disc_s: disc.derivative(),
             disc,
             p_s,
             p,
-            z_ss: z_s.derivative(),
             z_s,
             err_disc,
             err_p,
@@ -220,6 +216,17 @@ impl Polys {
             slope_lo,
             radius: r,
         }
+    }
+
+    /// `D'`, formed where it is used (the subdivision and the nearly parallel crossings; most
+    /// queries settle without it).
+    fn disc_s(&self) -> B6 {
+        self.disc.derivative()
+    }
+
+    /// `Z''`, formed where it is used (as [`Self::disc_s`]).
+    fn z_ss(&self) -> Bernstein<2> {
+        self.z_s.derivative()
     }
 
     /// `Z`, `D` and `D`'s rounding bound, for the entry proofs.
@@ -299,11 +306,11 @@ impl Cell {
             s0,
             s1,
             disc: k.disc.restrict(s0, s1),
-            disc_s: k.disc_s.restrict(s0, s1),
+            disc_s: k.disc_s().restrict(s0, s1),
             p: k.p.restrict(s0, s1),
             p_s: k.p_s.restrict(s0, s1),
             z_s: k.z_s.restrict(s0, s1),
-            z_ss: k.z_ss.restrict(s0, s1),
+            z_ss: k.z_ss().restrict(s0, s1),
         }
     }
 
@@ -525,7 +532,10 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
         // `D'` keeps one sign (it falls): `D` is monotone, below its negative ends.
         return Some(());
     }
-    // Newton's method on `P` (rising) from the secant point of its end values.
+    // Newton's method on `P` (rising) from the secant point of its end values, until a step is
+    // below 1e-6 (the next is then below about 1e-12): `m` only splits the range and starts the
+    // polish, whose start is off by 1e-4 to 1e-5 of the cell anyway (the tube's curvature), and
+    // the certificate below holds or fails by what it checks at `m`, wherever `m` lies.
     let mut m = if p1 > p0 { -p0 / (p1 - p0) } else { 0.5 };
     let mut slope = f64::NAN;
     for _ in 0..4 {
@@ -535,7 +545,11 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
         if !(next > 0.0 && next < 1.0) {
             break;
         }
+        let step = (next - m).abs();
         m = next;
+        if step < 1e-6 {
+            break;
+        }
     }
     let dm = k.disc.eval(m);
     if !(dm > k.err_disc) {
@@ -545,7 +559,7 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
         // Tapered: `D > delta^2` where `|P| < max|Z'| delta` (see above).
         let z_min = z_range.lo.abs().min(z_range.hi.abs());
         let z_max = z_range.lo.abs().max(z_range.hi.abs());
-        let (zss_lo, zss_hi) = k.z_ss.range();
+        let (zss_lo, zss_hi) = k.z_ss().range();
         // `Z''`'s coefficients are differences of `Z'`'s, times 2.
         let zss_max = zss_lo.abs().max(zss_hi.abs()) + 4.0 * k.err_z;
         let kappa = k.slope_lo + z_min * z_min - zss_max * r_max;
@@ -1103,8 +1117,9 @@ fn level_crossing<C: CrossSection, S: SweepRule>(
     if !(above(d0) && below(d1) || below(d0) && above(d1)) {
         return None;
     }
+    let disc_s = k.disc_s();
     let (s, converged) = converged_root_from(
-        &|s: f64| (k.disc.eval(s), k.disc_s.eval(s)),
+        &|s: f64| (k.disc.eval(s), disc_s.eval(s)),
         (0.0, 1.0, d0, d1),
         d0 / (d0 - d1),
     )?;
@@ -1339,7 +1354,7 @@ fn stretch_roots(k: &Polys, a: f64, b: f64) -> (ArrayVec<(f64, f64), 16>, bool) 
     ends.push(a);
     let mut zs = ArrayVec::new();
     k.disc
-        .roots(&k.disc_s, k.err_disc, MIN_WIDTH, BUDGET, &mut zs);
+        .roots(&k.disc_s(), k.err_disc, MIN_WIDTH, BUDGET, &mut zs);
     ends.extend(zs.into_iter().filter(|&z| z > a && z < b));
     ends.push(b);
     let mut found = ArrayVec::new();
