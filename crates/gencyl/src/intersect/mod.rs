@@ -790,6 +790,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             self.oblique(d, a, c)
         };
         if method == Method::Round {
+            // A tube's crossings, mostly, on its whole axis at once.
+            if round::whole_tube(self, o, d, (lo, hi), entries_after, deferred) {
+                return;
+            }
             for (a, b) in prefilter::candidate_ranges(self, o, d, |_, _| true) {
                 let range = widen(a, b, lo, hi);
                 let left = round::roots(self, o, d, range, entries_after, out, deferred);

@@ -512,8 +512,11 @@ impl Product {
 /// has exactly one root in `[0, 1]`: it is `-P > 0` at 0 and `-P < 0` at 1 (`D < 0` there, and
 /// `P(0) < P(a) < 0 < P(b) < P(1)`). They are certified ([`RootCell::certain`]); `m` splits the
 /// range where the branch's sign there allows. `Z'` must keep one sign, as
-/// [`RootCell::w_range`] takes it.
-fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
+/// [`RootCell::w_range`] takes it. Returns, where it certifies, `D` at the crossings of the
+/// straight tube through `m`, `D(m) P' / (P' + Z'^2)` (`D(m)` times the squared sine of the
+/// angle between the ray and the axis; `+inf` where the range has no crossing): how deep
+/// the crossings lie in `D`, which sets how much `D`'s rounding moves them ([`whole_tube`]).
+fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<f64> {
     let d = &k.disc.0;
     let [r0, r1] = k.radius;
     let (rho, r_max) = (r1 - r0, r0.abs().max(r1.abs()));
@@ -530,7 +533,7 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
     let err_q = k.err_p + SLACK * (r_max * rho).abs();
     if p0 - r0 * rho > err_q || p1 - r1 * rho < -err_q {
         // `D'` keeps one sign (it falls): `D` is monotone, below its negative ends.
-        return Some(());
+        return Some(f64::INFINITY);
     }
     // Newton's method on `P` (rising) from the secant point of its end values, until a step is
     // below 1e-6 (the next is then below about 1e-12): `m` only splits the range and starts the
@@ -609,7 +612,7 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<()> {
             })
             .ok()?;
     }
-    Some(())
+    Some(dm * slope / (slope + zs * zs))
 }
 
 /// The root cells of the whole range into `cells` ([`Product::new`], [`Product::cells`]);
@@ -792,6 +795,9 @@ fn positive_disc(k: &Polys, s0: f64, s1: f64) -> bool {
 struct DeferredRange {
     k: Polys,
     u: (f64, f64),
+    /// The local ray's origin where the range is a whole tube's ([`whole_tube`]): its
+    /// crossings are then refined in space ([`refined`]).
+    local: Option<DVec3>,
 }
 
 /// What a deferred root cell holds: certainly a crossing of the side surface where the ray
@@ -829,6 +835,20 @@ impl Deferred {
         }
     }
 
+    /// Keeps the range `u` (polynomials `k`) and its root cells, each with its bounds of `w`
+    /// ([`RootCell::w_range`]), but a tube's certain exits where the query wants entries only
+    /// (`entries_only`): they would be dropped unpolished. The caller makes sure there is room.
+    fn keep(&mut self, k: Polys, u: (f64, f64), cells: &[RootCell], entries_only: bool, len: f64) {
+        let range = self.ranges.len();
+        let r_max = k.radius[0].abs().max(k.radius[1].abs());
+        let wanted = |c: &&RootCell| !(entries_only && c.certain && c.sign > 0.0);
+        for cell in cells.iter().filter(wanted) {
+            let bounds = cell.w_range(&k, r_max, len);
+            self.cells.push((range, *cell, bounds));
+        }
+        self.ranges.push(DeferredRange { k, u, local: None });
+    }
+
     /// The deferred cells: index, lower and upper bound of `w`, and what each holds.
     pub(crate) fn bounds(&self) -> impl Iterator<Item = (usize, [f64; 2], CellCrossing)> + '_ {
         (0..self.cells.len()).map(|i| {
@@ -864,9 +884,9 @@ impl Deferred {
         if settle(&r.k, &cell, &mut roots).is_none() {
             let (u0, u1) = r.u;
             let cell_u = (u0 + (u1 - u0) * cell.s0, u0 + (u1 - u0) * cell.s1);
-            return subdivided(cyl, d, &r.k, r.u, cell_u, out);
+            return subdivided(cyl, (d, r.local), &r.k, r.u, cell_u, out);
         }
-        push_all(cyl, d, &r.k, r.u, d.length(), &roots, out);
+        push_all(cyl, (d, r.local), &r.k, r.u, &roots, out);
         None
     }
 }
@@ -886,7 +906,7 @@ impl Deferred {
 /// perpendicular rays, whose shallow grazes that tolerance would merge into one touch.)
 fn subdivided<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
-    d: DVec3,
+    (d, local): (DVec3, Option<DVec3>),
     k: &Polys,
     (u0, u1): (f64, f64),
     (ua, ub): (f64, f64),
@@ -904,7 +924,7 @@ fn subdivided<C: CrossSection, S: SweepRule>(
     {
         return Some(((ua, ub), rising));
     }
-    push_all(cyl, d, k, (u0, u1), d.length(), &found, out);
+    push_all(cyl, (d, local), k, (u0, u1), &found, out);
     None
 }
 
@@ -949,7 +969,7 @@ fn roots_in<C: CrossSection, S: SweepRule>(
     // The subdivision, and where it finds nothing, a closer look at where `D` nears zero.
     let subdivide = |out: &mut SideRoots, deferred: &mut Deferred| {
         let before = out.len();
-        let left = subdivided(cyl, d, &k, (u0, u1), (u0, u1), out);
+        let left = subdivided(cyl, (d, None), &k, (u0, u1), (u0, u1), out);
         if left.is_some() || out.len() > before {
             return left;
         }
@@ -991,23 +1011,107 @@ fn roots_in<C: CrossSection, S: SweepRule>(
     }
     let room = deferred.cells.remaining_capacity() >= cells.len();
     if !deferred.ranges.is_full() && room {
-        let range = deferred.ranges.len();
-        let r_max = r[0].abs().max(r[1].abs());
-        // A query for entries only drops a tube's certain exits unpolished: not kept.
-        let wanted = |c: &&RootCell| entries_after.is_none() || !(c.certain && c.sign > 0.0);
-        for cell in cells.iter().filter(wanted) {
-            let bounds = cell.w_range(&k, r_max, len);
-            deferred.cells.push((range, *cell, bounds));
-        }
-        deferred.ranges.push(DeferredRange { k, u: (u0, u1) });
+        deferred.keep(k, (u0, u1), &cells, entries_after.is_some(), len);
         return None;
     }
     let mut found = ArrayVec::new();
     if settle_all(&k, &cells, &mut found).is_none() {
         return subdivide(out, deferred);
     }
-    push_all(cyl, d, &k, (u0, u1), len, &found, out);
+    push_all(cyl, (d, None), &k, (u0, u1), &found, out);
     None
+}
+
+/// How far [`whole_tube`] lets `D`'s rounding over the whole axis move a crossing before the
+/// refinement ([`refined`]), relative to the crossing's depth in the ball about the axis point
+/// (`sqrt(D*)`): one Newton step then leaves `5e-4` of that error (the distance `|e|^2 - r^2`
+/// is quadratic in `w`, with curvature `1 / (2 sqrt(D*))` against its slope), below rounding.
+const WHOLE_START: f64 = 1e-3;
+
+/// The side roots of a tube (constant radius, no folding) on the whole `u` range `[u0, u1]` at
+/// once, without the prefilter's narrower ranges: where [`tube_cells`] certifies them there
+/// (one entry and one exit, each alone in its cell), their cells are left in `deferred` (empty
+/// before) as [`roots`] leaves a range's, marked for refinement, and the answer is `true`;
+/// else `false` and nothing is left (the caller searches the prefilter's ranges). With
+/// `entries_after = Some(w_min)`, a range that [`no_entry_after`] clears is left at once, as
+/// in [`roots`].
+///
+/// The certificate and the bounds hold whatever the range (their rounding bounds are the
+/// range's), but the polished crossing is not as close: on the whole axis `D`'s coefficients
+/// are as large as the axis' squared distance from the ray (about the fiber's length squared),
+/// not the radius' as on the prefilter's narrow ranges, and forming and evaluating `D` rounds
+/// it by about `16 eps max|D|`, which moves `z = Z - sqrt(D)` by that over `sqrt(D*)`, `D*` the
+/// crossings' depth in `D` ([`tube_cells`]'s answer): about `1e-13` on the ponytail, where the
+/// narrow ranges keep it to a few units of rounding. So each crossing found here takes one
+/// Newton step on its conditions in space ([`refined`]), whose rounding is that of the
+/// coordinates, as on the narrow ranges; where that start is not within [`WHOLE_START`] of
+/// the depth (grazes), the prefilter's ranges take the ray.
+pub(crate) fn whole_tube<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+    (u0, u1): (f64, f64),
+    entries_after: Option<f64>,
+    deferred: &mut Deferred,
+) -> bool {
+    let Some(r) = range_radius(cyl, (u0, u1)) else {
+        return false;
+    };
+    if r[0] != r[1] || cyl.may_fold() || !deferred.ranges.is_empty() {
+        return false;
+    }
+    let k = Polys::new(cyl.axis.segment(u0, u1).points, r, o, d, 0.0);
+    let (len, r_max) = (d.length(), r[0].abs());
+    if entries_after.is_some_and(|w_min| no_entry_after(k.balls(), w_min * len, r_max, None)) {
+        return true;
+    }
+    let mut cells = ArrayVec::new();
+    let Some(depth) = tube_cells(&k, &mut cells) else {
+        return false;
+    };
+    if !(16.0 * f64::EPSILON * k.disc.magnitude() <= WHOLE_START * depth) {
+        return false;
+    }
+    deferred.keep(k, (u0, u1), &cells, entries_after.is_some(), len);
+    deferred.ranges.last_mut().expect("kept").local = Some(o);
+    true
+}
+
+/// The crossing `(u, w)` of the local ray `o + w d` with the tube of radius `r` about the
+/// axis, after one Newton step from `(u, w)` on its conditions in space: `e = o + w d - a(u)`
+/// lies in the normal plane, `F1 = a'.e = 0`, on the circle, `F2 = |e|^2 - r^2 = 0`. The
+/// Jacobian is `[[a''.e - |a'|^2, a'.d], [-2 F1, 2 e.d]]`. (`(u, w)` itself where the step is
+/// not finite.)
+fn refined<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (o, d): (DVec3, DVec3),
+    r: f64,
+    (u, w): (f64, f64),
+) -> (f64, f64) {
+    // `a`, `a'` and `a''` from one run of de Casteljau's algorithm.
+    let [p0, p1, p2, p3] = cyl.axis.points;
+    let (q0, q1, q2) = (p0 + u * (p1 - p0), p1 + u * (p2 - p1), p2 + u * (p3 - p2));
+    let (s0, s1) = (q0 + u * (q1 - q0), q1 + u * (q2 - q1));
+    let (a, a1, a2) = (
+        s0 + u * (s1 - s0),
+        3.0 * (s1 - s0),
+        6.0 * ((q2 - q1) - (q1 - q0)),
+    );
+    let e = o + w * d - a;
+    let (f1, f2) = (a1.dot(e), e.length_squared() - r * r);
+    let (j11, j12, j21, j22) = (
+        a2.dot(e) - a1.length_squared(),
+        a1.dot(d),
+        -2.0 * f1,
+        2.0 * e.dot(d),
+    );
+    let det = j11 * j22 - j12 * j21;
+    let (du, dw) = ((f1 * j22 - j12 * f2) / det, (j11 * f2 - j21 * f1) / det);
+    if du.is_finite() && dw.is_finite() {
+        (u - du, w - dw)
+    } else {
+        (u, w)
+    }
 }
 
 /// Most times [`roots_in`] forms a range's polynomials again on a narrower part
@@ -1328,20 +1432,26 @@ const WITNESS_STEPS: usize = 4;
 /// Most cells [`nothing_ahead`] halves before it leaves a range to the full isolation.
 const CLEAR_BUDGET: usize = 12;
 
-/// Records the roots `(s, sign)` of the range `[u0, u1]` as side roots.
+/// Records the roots `(s, sign)` of the range `[u0, u1]` as side roots; where `local` is the
+/// local ray's origin (a whole tube's range, [`whole_tube`]), each [`refined`] in space.
 fn push_all<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
-    d: DVec3,
+    (d, local): (DVec3, Option<DVec3>),
     k: &Polys,
     (u0, u1): (f64, f64),
-    len: f64,
     roots: &[(f64, f64)],
     out: &mut SideRoots,
 ) {
+    let len = d.length();
     for &(s, sign) in roots {
         // The crossing of the sphere: z = Z ± sqrt(D) along d / |d| from o.
         let w = (k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt()) / len;
-        push(cyl, d, u0 + (u1 - u0) * s, w, out);
+        let u = u0 + (u1 - u0) * s;
+        let (u, w) = match local {
+            Some(o) => refined(cyl, (o, d), k.radius[0], (u, w)),
+            None => (u, w),
+        };
+        push(cyl, d, u, w, out);
     }
 }
 
@@ -1702,6 +1812,200 @@ mod tests {
         assert!(
             unsettled * 20 < roots,
             "unsettled cells: {unsettled} of {roots}"
+        );
+    }
+
+    /// The crossing `(u, w)` of the local ray `o + w d` with the tube of radius `r` about
+    /// `curve` near `(u, w)`, in double-double: Newton's method on `F1 = a'.e`, `F2 = |e|^2 -
+    /// r^2` (`e = o + w d - a(u)`) with the residuals in double-double and the steps in `f64`
+    /// (the residuals set the accuracy), from the crossing given.
+    fn crossing_dd(
+        curve: &[DVec3; 4],
+        (o, d): (DVec3, DVec3),
+        r: f64,
+        (u, w): (f64, f64),
+    ) -> (f64, f64) {
+        use crate::test_rng::Dd;
+        let neg = |x: Dd| Dd(-x.0, -x.1);
+        let (mut u, mut w) = (Dd::of(u), Dd::of(w));
+        for _ in 0..4 {
+            let v = Dd::of(1.0).add(neg(u));
+            let (uu, vv) = (u.mul(u), v.mul(v));
+            let three = Dd::of(3.0);
+            // Bernstein weights of a, a' (over the hodograph) and a''.
+            let wp = [
+                vv.mul(v),
+                three.mul(vv).mul(u),
+                three.mul(v).mul(uu),
+                uu.mul(u),
+            ];
+            let wd = [vv, Dd::of(2.0).mul(v).mul(u), uu];
+            let h: [DVec3; 3] = std::array::from_fn(|i| 3.0 * (curve[i + 1] - curve[i]));
+            let h2: [DVec3; 2] = std::array::from_fn(|i| h[i + 1] - h[i]);
+            let comb = |pts: &[DVec3], ws: &[Dd], k: usize| {
+                pts.iter()
+                    .zip(ws)
+                    .fold(Dd::of(0.0), |acc, (p, &wt)| acc.add(Dd::of(p[k]).mul(wt)))
+            };
+            let mut e = [Dd::of(0.0); 3];
+            let (mut a1, mut a2) = ([0.0; 3], [0.0; 3]);
+            let mut a1d = [Dd::of(0.0); 3];
+            for k in 0..3 {
+                let a = comb(curve, &wp, k);
+                e[k] = Dd::of(o[k]).add(w.mul(Dd::of(d[k]))).add(neg(a));
+                a1d[k] = comb(&h, &wd, k);
+                a1[k] = a1d[k].value();
+                a2[k] = 2.0 * comb(&h2, &[v, u], k).value();
+            }
+            let f1 = (0..3)
+                .fold(Dd::of(0.0), |acc, k| acc.add(a1d[k].mul(e[k])))
+                .value();
+            let f2 = (0..3)
+                .fold(Dd::of(-r).mul(Dd::of(r)), |acc, k| acc.add(e[k].mul(e[k])))
+                .value();
+            let ev = DVec3::new(e[0].value(), e[1].value(), e[2].value());
+            let (a1, a2) = (DVec3::from_array(a1), DVec3::from_array(a2));
+            let (j11, j12, j21, j22) = (
+                a2.dot(ev) - a1.length_squared(),
+                a1.dot(d),
+                -2.0 * f1,
+                2.0 * ev.dot(d),
+            );
+            let det = j11 * j22 - j12 * j21;
+            u = u.add(Dd::of(-(f1 * j22 - j12 * f2) / det));
+            w = w.add(Dd::of(-(j11 * f2 - j21 * f1) / det));
+        }
+        (u.value(), w.value())
+    }
+
+    /// [`whole_tube`]'s crossings are as close to the exact ones (double-double Newton's method
+    /// on their conditions in space, [`crossing_dd`]) as those of the prefilter's narrow ranges
+    /// ([`roots`]): within 4 times their error plus 16 units of the coordinates' size over the
+    /// cosine of incidence, in `w` and in `u` (times `|a'|`). Tubes of radius `1e-6` to `0.3`
+    /// of their length, at the origin and 1e4 from it; rays across the axis at tilts down to
+    /// `1e-12`, or from any direction, entering anywhere between the axis and 0.98 of the
+    /// radius from it. Without [`refined`] the thinnest tubes' crossings are off by far more.
+    #[test]
+    fn whole_tube_crossings_are_as_close_as_the_narrow_ranges() {
+        use super::super::U_MARGIN;
+        use crate::Ray;
+        use crate::curve::CubicBezier;
+        use crate::section::Section;
+        use crate::sweep::HairSweep;
+        let mut rng = Lcg(36);
+        let (mut taken, mut compared) = (0, 0);
+        let (mut worst, mut thinnest, mut thickest) = (0.0f64, f64::INFINITY, 0.0f64);
+        for i in 0..3000 {
+            let shift = if i % 2 == 0 {
+                DVec3::splat(1e4)
+            } else {
+                DVec3::ZERO
+            };
+            let bend = [0.05, 0.2, 0.4][i % 3];
+            let curve = CubicBezier::new(std::array::from_fn(|j| {
+                shift
+                    + DVec3::new(
+                        j as f64 / 3.0,
+                        rng.range(-bend, bend),
+                        rng.range(-bend, bend),
+                    )
+            }));
+            let r = 10f64.powf(rng.range(-6.0, -0.5));
+            let sweep = HairSweep {
+                major: [r, r],
+                minor: [r, r],
+                rotation: [0.0, 0.0],
+            };
+            let Ok(cyl) = GeneralizedCylinder::new(curve, Section::default(), sweep, true, None)
+            else {
+                continue;
+            };
+            if cyl.may_fold() {
+                continue;
+            }
+            let s = rng.range(0.05, 0.95);
+            let t = curve.d1(s).normalize();
+            let across = t.any_orthonormal_vector();
+            let across = (across * rng.range(-1.0, 1.0) + t.cross(across) * rng.range(-1.0, 1.0))
+                .normalize();
+            let side = t.cross(across);
+            let d = if i % 4 == 3 {
+                rng.unit()
+            } else {
+                (across + 10f64.powf(rng.range(-12.0, 0.0)) * t).normalize()
+            };
+            let p = curve.point(s) + side * (r * rng.range(-0.98, 0.98));
+            let ray = Ray {
+                origin: p - d * rng.range(0.5, 3.0),
+                dir: d * rng.range(0.5, 2.0),
+            };
+            let (o, _) = cyl.local_ray(&ray, &cyl.bounds());
+            let d = ray.dir;
+            let range = (-U_MARGIN, 1.0 + U_MARGIN);
+            let mut whole = Deferred::new();
+            if !whole_tube(&cyl, o, d, range, None, &mut whole) || whole.cells.is_empty() {
+                continue;
+            }
+            taken += 1;
+            (thinnest, thickest) = (thinnest.min(r), thickest.max(r));
+            let mut narrow = Deferred::new();
+            let mut narrow_out = SideRoots::new();
+            for (a, b) in super::super::prefilter::candidate_ranges(&cyl, o, d, |_, _| true) {
+                let range = super::super::widen(a, b, range.0, range.1);
+                roots(&cyl, o, d, range, None, &mut narrow_out, &mut narrow);
+            }
+            let polish_all = |def: &Deferred, out: &mut SideRoots| {
+                for j in 0..def.cells.len() {
+                    assert!(def.polish(j, &cyl, d, out).is_none());
+                }
+            };
+            let mut whole_out = SideRoots::new();
+            polish_all(&whole, &mut whole_out);
+            polish_all(&narrow, &mut narrow_out);
+            let axis = cyl.axis.points;
+            let size = axis
+                .iter()
+                .fold(o.abs().max_element(), |m, p| m.max(p.abs().max_element()));
+            for h in &whole_out {
+                let Some(n) = narrow_out
+                    .iter()
+                    .min_by(|x, y| (x.w - h.w).abs().total_cmp(&(y.w - h.w).abs()))
+                else {
+                    panic!("case {i}: the narrow ranges found no crossing");
+                };
+                let (u, w) = crossing_dd(&axis, (o, d), r, (h.u, h.w));
+                let e = o + w * d - cyl.axis.point(u);
+                let cos = (e.dot(d) / (r * d.length())).abs();
+                if cos < 1e-3 {
+                    continue;
+                }
+                compared += 1;
+                let speed = cyl.axis.d1(u).length();
+                let scale = 16.0 * f64::EPSILON * (size + (w * d).length()) / cos;
+                let (ew, nw) = (((h.w - w) * d).length(), ((n.w - w) * d).length());
+                let (eu, nu) = ((h.u - u).abs() * speed, (n.u - u).abs() * speed);
+                worst = worst.max(ew / (4.0 * nw + scale));
+                assert!(
+                    ew <= 4.0 * nw + scale && eu <= 4.0 * nu + scale,
+                    "case {i}: r {r:e}, whole (u, w) ({}, {}) off by ({eu:e}, {ew:e}), narrow ({}, \
+                     {}) by ({nu:e}, {nw:e}); exact ({u}, {w}), allowance {scale:e}",
+                    h.u,
+                    h.w,
+                    n.u,
+                    n.w
+                );
+            }
+        }
+        println!(
+            "taken {taken}, compared {compared}, worst {worst:.3}, radii {thinnest:e} to {thickest:e}"
+        );
+        assert!(
+            taken > 300 && compared > 600,
+            "taken {taken}, compared {compared}"
+        );
+        assert!(
+            thinnest < 1e-5 && thickest > 0.1,
+            "radii {thinnest:e} to {thickest:e}"
         );
     }
 }
