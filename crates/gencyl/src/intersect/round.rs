@@ -1536,6 +1536,50 @@ mod tests {
         k.z.eval(s) + sign * k.disc.eval(s).max(0.0).sqrt()
     }
 
+    /// A cubic axis from `shift` to `shift + (1, 0, 0)`, its control points a third apart
+    /// along `x` and bent across by up to `bend`.
+    fn bent_axis(rng: &mut Lcg, shift: DVec3, bend: f64) -> crate::curve::CubicBezier {
+        crate::curve::CubicBezier::new(std::array::from_fn(|j| {
+            shift
+                + DVec3::new(
+                    j as f64 / 3.0,
+                    rng.range(-bend, bend),
+                    rng.range(-bend, bend),
+                )
+        }))
+    }
+
+    /// The round fiber about `curve` whose radius runs from `r0` to `r1`, unless it is refused
+    /// or may fold.
+    fn round_fiber(
+        curve: crate::curve::CubicBezier,
+        [r0, r1]: [f64; 2],
+    ) -> Option<GeneralizedCylinder<crate::section::Section, crate::sweep::HairSweep>> {
+        let sweep = crate::sweep::HairSweep {
+            major: [r0, r1],
+            minor: [r0, r1],
+            rotation: [0.0, 0.0],
+        };
+        let section = crate::section::Section::default();
+        GeneralizedCylinder::new(curve, section, sweep, true, None)
+            .ok()
+            .filter(|c| !c.may_fold())
+    }
+
+    /// At `s` on `curve`: the unit tangent `t`, a unit vector across it in a random direction,
+    /// and `t` times that.
+    fn across_at(
+        rng: &mut Lcg,
+        curve: &crate::curve::CubicBezier,
+        s: f64,
+    ) -> (DVec3, DVec3, DVec3) {
+        let t = curve.d1(s).normalize();
+        let across = t.any_orthonormal_vector();
+        let across =
+            (across * rng.range(-1.0, 1.0) + t.cross(across) * rng.range(-1.0, 1.0)).normalize();
+        (t, across, t.cross(across))
+    }
+
     /// The oracle of the tests below: the branch-by-branch subdivision's roots on the whole
     /// range, ascending, a grazing root (found on both branches at one point of the ray) kept
     /// once. (An entry and an exit at nearly one `s`, as a ray nearly in the normal plane has
@@ -1650,9 +1694,6 @@ mod tests {
     /// certified too (no cells); the rest of the ranges are left to the product method.
     #[test]
     fn tube_cells_agree_with_stretch_roots() {
-        use crate::curve::CubicBezier;
-        use crate::section::Section;
-        use crate::sweep::HairSweep;
         let mut rng = Lcg(23);
         let (mut hits, mut misses, mut left, mut roots) = (0, 0, 0, 0);
         let (mut tapered_hits, mut along_hits, mut unsettled) = (0, 0, 0);
@@ -1662,15 +1703,7 @@ mod tests {
             } else {
                 DVec3::ZERO
             };
-            let bend = [0.05, 0.2, 0.4][i % 3];
-            let curve = CubicBezier::new(std::array::from_fn(|j| {
-                shift
-                    + DVec3::new(
-                        j as f64 / 3.0,
-                        rng.range(-bend, bend),
-                        rng.range(-bend, bend),
-                    )
-            }));
+            let curve = bent_axis(&mut rng, shift, [0.05, 0.2, 0.4][i % 3]);
             let r0 = 10f64.powf(rng.range(-6.0, -1.0));
             // Half the fibers tapered, to between a third and three times the radius.
             let tapered = (i / 5) % 2 == 1;
@@ -1680,25 +1713,12 @@ mod tests {
                 r0
             };
             let radius = |u: f64| r0 + (r1 - r0) * u;
-            let sweep = HairSweep {
-                major: [r0, r1],
-                minor: [r0, r1],
-                rotation: [0.0, 0.0],
-            };
-            let Ok(cyl) = GeneralizedCylinder::new(curve, Section::default(), sweep, true, None)
-            else {
+            let Some(cyl) = round_fiber(curve, [r0, r1]) else {
                 continue;
             };
-            if cyl.may_fold() {
-                continue;
-            }
             let s = rng.range(0.0, 1.0);
             let rs = radius(s);
-            let t = curve.d1(s).normalize();
-            let across = t.any_orthonormal_vector();
-            let across = (across * rng.range(-1.0, 1.0) + t.cross(across) * rng.range(-1.0, 1.0))
-                .normalize();
-            let side = t.cross(across);
+            let (t, across, side) = across_at(&mut rng, &curve, s);
             let (o, d) = match i % 8 {
                 // Across the axis, tilted by 10^-15 .. 1 rad, or exactly perpendicular.
                 0 | 1 | 4 | 5 => {
@@ -1889,9 +1909,6 @@ mod tests {
     fn whole_tube_crossings_are_as_close_as_the_narrow_ranges() {
         use super::super::U_MARGIN;
         use crate::Ray;
-        use crate::curve::CubicBezier;
-        use crate::section::Section;
-        use crate::sweep::HairSweep;
         let mut rng = Lcg(36);
         let (mut taken, mut compared) = (0, 0);
         let (mut worst, mut thinnest, mut thickest) = (0.0f64, f64::INFINITY, 0.0f64);
@@ -1901,34 +1918,13 @@ mod tests {
             } else {
                 DVec3::ZERO
             };
-            let bend = [0.05, 0.2, 0.4][i % 3];
-            let curve = CubicBezier::new(std::array::from_fn(|j| {
-                shift
-                    + DVec3::new(
-                        j as f64 / 3.0,
-                        rng.range(-bend, bend),
-                        rng.range(-bend, bend),
-                    )
-            }));
+            let curve = bent_axis(&mut rng, shift, [0.05, 0.2, 0.4][i % 3]);
             let r = 10f64.powf(rng.range(-6.0, -0.5));
-            let sweep = HairSweep {
-                major: [r, r],
-                minor: [r, r],
-                rotation: [0.0, 0.0],
-            };
-            let Ok(cyl) = GeneralizedCylinder::new(curve, Section::default(), sweep, true, None)
-            else {
+            let Some(cyl) = round_fiber(curve, [r, r]) else {
                 continue;
             };
-            if cyl.may_fold() {
-                continue;
-            }
             let s = rng.range(0.05, 0.95);
-            let t = curve.d1(s).normalize();
-            let across = t.any_orthonormal_vector();
-            let across = (across * rng.range(-1.0, 1.0) + t.cross(across) * rng.range(-1.0, 1.0))
-                .normalize();
-            let side = t.cross(across);
+            let (t, across, side) = across_at(&mut rng, &curve, s);
             let d = if i % 4 == 3 {
                 rng.unit()
             } else {
