@@ -1093,16 +1093,17 @@ pub(crate) fn whole_tube<C: CrossSection, S: SweepRule>(
     let Some(depth) = tube_cells(&k, &mut cells) else {
         return false;
     };
-    let moved = 16.0 * f64::EPSILON * k.disc.magnitude();
-    if !(moved <= WHOLE_START * depth && depth >= (WHOLE_MIN_COS * r_max).powi(2)) {
+    let rounding = 16.0 * f64::EPSILON * k.disc.magnitude();
+    if !(rounding <= WHOLE_START * depth && depth >= (WHOLE_MIN_COS * r_max).powi(2)) {
         return false;
     }
-    // The refinement may move a crossing by 8 times what `D`'s rounding may have (its depth at
-    // the root can fall below the straight tube's, by 0.19 at worst in the review's sample):
-    // far inside the cells' bounds' margin (`4 sqrt(err_D)`, a thousand times more).
+    // The refinement may move a crossing 8 times as far as `D`'s rounding may have moved it
+    // (`rounding / (2 sqrt(D*))`; the depth at the root can fall below the straight tube's, to
+    // 0.19 of it at worst in the review's sample): at the gate's edge, under a hundredth of
+    // the cells' bounds' margin (`4 sqrt(err_D)`).
     let local = Refine {
         o,
-        reach: 8.0 * moved / (2.0 * depth.sqrt()),
+        reach: 8.0 * rounding / (2.0 * depth.sqrt()),
     };
     deferred.keep(
         (k, (u0, u1), Some(local)),
