@@ -119,7 +119,7 @@ const MAX_CROSSINGS: usize = 64
     + round::MAX_DEFERRED
     + radial_cells::MAX_RADIAL_CELLS * MAX_ROOTS;
 
-/// Most finished hits of one ray and one cylinder before the side's ([`Pending::Done`]): two
+/// Most hits of one ray and one cylinder that are finished when found ([`Pending::Done`]): two
 /// caps, the fold envelope's roots (at most 8) and one per switch of the Frenet frame (at
 /// most 8).
 const MAX_DONE: usize = 2 + 8 + 8;
