@@ -131,6 +131,21 @@ impl CubicBezier {
         self.d2_r(u).value()
     }
 
+    /// `[a(u), a'(u), a''(u)]` from one run of de Casteljau's algorithm: the last level's
+    /// point, three times the difference of the level before, and six times the second
+    /// difference of the first level.
+    #[inline]
+    pub fn jet(&self, u: f64) -> [DVec3; 3] {
+        let [p0, p1, p2, p3] = self.points;
+        let (q0, q1, q2) = (p0 + u * (p1 - p0), p1 + u * (p2 - p1), p2 + u * (p3 - p2));
+        let (s0, s1) = (q0 + u * (q1 - q0), q1 + u * (q2 - q1));
+        [
+            s0 + u * (s1 - s0),
+            3.0 * (s1 - s0),
+            6.0 * ((q2 - q1) - (q1 - q0)),
+        ]
+    }
+
     /// `a(u)` over any [`Real`].
     #[inline]
     pub fn point_r<T: Real>(&self, u: T) -> V3<T> {
@@ -311,6 +326,35 @@ mod tests {
     use super::*;
     use crate::real::Dual;
     use crate::test_rng::Dd;
+
+    /// [`CubicBezier::jet`] (de Casteljau) agrees with the Bernstein weights' `a`, `a'` and
+    /// `a''` ([`CubicBezier::point`], `d1`, `d2`) to rounding, at the origin and at 1e4, for
+    /// `u` in `[0, 1]` and just outside it.
+    #[test]
+    fn the_jet_is_the_point_and_its_derivatives() {
+        let mut rng = crate::test_rng::Lcg(7);
+        for i in 0..2000 {
+            let shift = if i % 2 == 0 {
+                DVec3::ZERO
+            } else {
+                DVec3::splat(1e4)
+            };
+            let c = CubicBezier::new(std::array::from_fn(|_| shift + rng.unit() * rng.next()));
+            let u = rng.range(-0.01, 1.01);
+            let [a, a1, a2] = c.jet(u);
+            let size = c
+                .points
+                .iter()
+                .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
+            for (x, y, n) in [(a, c.point(u), 1.0), (a1, c.d1(u), 3.0), (a2, c.d2(u), 6.0)] {
+                let err = (x - y).abs().max_element();
+                assert!(
+                    err <= 16.0 * n * f64::EPSILON * size,
+                    "case {i}, u {u}: {x} against {y}"
+                );
+            }
+        }
+    }
 
     /// The derivative scales are normal powers of two that bring a size to `[1, 2)` (`[2, 4)`
     /// above `2^1023`, below 2 from a subnormal one); 1 for zero, infinite or NaN sizes.

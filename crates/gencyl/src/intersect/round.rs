@@ -1128,15 +1128,7 @@ fn refined<C: CrossSection, S: SweepRule>(
     (u, w): (f64, f64),
 ) -> (f64, f64) {
     let o = refine.o;
-    // `a`, `a'` and `a''` from one run of de Casteljau's algorithm.
-    let [p0, p1, p2, p3] = cyl.axis.points;
-    let (q0, q1, q2) = (p0 + u * (p1 - p0), p1 + u * (p2 - p1), p2 + u * (p3 - p2));
-    let (s0, s1) = (q0 + u * (q1 - q0), q1 + u * (q2 - q1));
-    let (a, a1, a2) = (
-        s0 + u * (s1 - s0),
-        3.0 * (s1 - s0),
-        6.0 * ((q2 - q1) - (q1 - q0)),
-    );
+    let [a, a1, a2] = cyl.axis.jet(u);
     let e = o + w * d - a;
     let (f1, f2) = (a1.dot(e), e.length_squared() - r * r);
     let (j11, j12, j21, j22) = (
