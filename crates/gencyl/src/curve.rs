@@ -305,6 +305,14 @@ fn largest_coordinate(pts: &[DVec3]) -> f64 {
     })
 }
 
+/// A power of two near `1 / max|v_i|` ([`unit_scale`] of `v`'s largest coordinate): `v` scaled
+/// by it has its largest coordinate in `[1, 2)`. A point's own scale where the frame needs
+/// `a'(u)` and `a''(u)` at unit size: the same bits as [`CubicBezier::derivative_scales`]
+/// give (both exact) wherever neither scaling under- or overflows, without the hodographs.
+pub(crate) fn vector_scale(v: DVec3) -> f64 {
+    unit_scale(v.abs().max_element())
+}
+
 /// For a positive finite size `m`, the power of two `2^-e` with `m 2^-e` in `[1, 2)` (in
 /// `[2, 4)` above `2^1023`, where `2^-1023` would not be normal); else 1 (a vanishing or unbounded
 /// derivative keeps its scale). From the bits of `m`: `2^-e` has the biased exponent

@@ -6,7 +6,7 @@ use arrayvec::ArrayVec;
 use glam::DVec3;
 
 use crate::bernstein::Bernstein;
-use crate::curve::CubicBezier;
+use crate::curve::{CubicBezier, vector_scale};
 use crate::real::{Dual, Real, V3};
 use crate::roots::{Function1D, IsolateOptions, isolate_roots};
 
@@ -539,6 +539,9 @@ fn frenet_frame<T: Real>(d1: V3<T>, d2: V3<T>) -> [V3<T>; 3] {
 /// [`frame_r`] in `f64` at `u`, given `a'(u)` and `a''(u)` as [`CubicBezier::d1`] and
 /// [`CubicBezier::d2`] evaluate them: the same frame to the bit, without evaluating them again
 /// (where the Frenet frame is taken from beside `u`, [`frenet_shift`], it is [`frame_r`]'s).
+/// They are brought to unit size by their own scales ([`vector_scale`]), not the hodographs'
+/// ([`CubicBezier::derivative_scales`]): powers of two either way, so the same bits wherever
+/// neither under- or overflows.
 pub(crate) fn frame_with(
     axis: &CubicBezier,
     framing: &Framing,
@@ -548,12 +551,14 @@ pub(crate) fn frame_with(
 ) -> Frame {
     let [t, n, b] = match framing {
         Framing::Fixed(f) => return **f,
-        Framing::Projected(r) => projected_frame(V3::cst(d1 * axis.speed_scale()), *r),
+        Framing::Projected(r) => projected_frame(V3::cst(d1 * vector_scale(d1)), *r),
         Framing::Frenet => {
             let shift = frenet_shift_with(axis, u, d1, d2);
             if shift == 0.0 {
-                let [k1, k2] = axis.derivative_scales();
-                frenet_frame(V3::cst(d1 * k1), V3::cst(d2 * k2))
+                frenet_frame(
+                    V3::cst(d1 * vector_scale(d1)),
+                    V3::cst(d2 * vector_scale(d2)),
+                )
             } else {
                 frame_r(axis, framing, u)
             }
@@ -1109,7 +1114,8 @@ mod tests {
 
     /// The frame from given `a'` and `a''` ([`frame_with`], the hit finish's) is [`frame_r`]'s to
     /// the bit, for every framing: on a helix, on a near-inflection, on an exact inflection
-    /// (where the Frenet frame is taken from beside `u`), at 1e4 and at 1e-6 of the size.
+    /// (where the Frenet frame is taken from beside `u`), at 1e4 and at 1e-6 of the size, and
+    /// at 1e-150 and 1e150 (where unscaled products would under- and overflow).
     #[test]
     fn frame_from_given_derivatives_is_the_same_frame() {
         let inflection = s_curve();
@@ -1125,6 +1131,8 @@ mod tests {
             (inflection, 1.0, 0.0),
             (helix_like(), 1e-6, 1e4),
             (inflection, 1e-6, 1e4),
+            (helix_like(), 1e-150, 0.0),
+            (near_inflection(), 1e150, 0.0),
         ] {
             let c = CubicBezier::new(c.points.map(|p| p * scale + DVec3::splat(offset)));
             for framing in [Framing::Frenet, Framing::Projected(DVec3::Z), fixed.clone()] {
