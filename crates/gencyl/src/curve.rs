@@ -335,6 +335,54 @@ mod tests {
     use crate::real::Dual;
     use crate::test_rng::Dd;
 
+    /// [`CubicBezier::segment`] traces the curve: its point at `s` is `a(u0 + s (u1 - u0))`
+    /// (against a double-double evaluation of the Bernstein form) to rounding, for ranges
+    /// inside `[0, 1]`, reaching beyond it, reversed, and `1e-11` beyond both ends (the whole
+    /// axis' range), at the origin and at 1e4.
+    #[test]
+    fn segments_trace_the_curve() {
+        let mut rng = crate::test_rng::Lcg(11);
+        for i in 0..2000 {
+            let shift = DVec3::splat(if i % 2 == 0 { 0.0 } else { 1e4 });
+            let c = CubicBezier::new(std::array::from_fn(|_| shift + rng.unit() * rng.next()));
+            let (u0, u1) = match i % 4 {
+                0 => (-1e-11, 1.0 + 1e-11),
+                1 => (rng.range(0.0, 1.0), rng.range(0.0, 1.0)),
+                _ => (rng.range(-0.5, 1.5), rng.range(-0.5, 1.5)),
+            };
+            let seg = c.segment(u0, u1);
+            let size = c
+                .points
+                .iter()
+                .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
+            let span = (u1 - u0).abs().max(1.0);
+            for s in [0.0, 0.25, 0.5, 0.9, 1.0] {
+                // a(u) = sum of the Bernstein weights times the points, in double-double.
+                let u = Dd::of(u0).add(Dd::of(u1).add(Dd::of(-u0)).mul(Dd::of(s)));
+                let v = Dd::of(1.0).add(Dd::of(-u.0)).add(Dd::of(-u.1));
+                let (uu, vv) = (u.mul(u), v.mul(v));
+                let w = [
+                    vv.mul(v),
+                    Dd::of(3.0).mul(u).mul(vv),
+                    Dd::of(3.0).mul(uu).mul(v),
+                    uu.mul(u),
+                ];
+                let got = seg.point(s);
+                for k in 0..3 {
+                    let exact = (0..4).fold(Dd::of(0.0), |acc, j| {
+                        acc.add(w[j].mul(Dd::of(c.points[j][k])))
+                    });
+                    let err = Dd::of(got[k]).add(Dd::of(-exact.0)).add(Dd::of(-exact.1));
+                    let err = err.value().abs();
+                    assert!(
+                        err <= 64.0 * f64::EPSILON * size * span.powi(3),
+                        "segment [{u0}, {u1}] at {s}: off by {err:e}"
+                    );
+                }
+            }
+        }
+    }
+
     /// [`CubicBezier::jet`] (de Casteljau) agrees with the Bernstein weights' `a`, `a'` and
     /// `a''` ([`CubicBezier::point`], `d1`, `d2`) to rounding, at the origin and at 1e4, for
     /// `u` in `[0, 1]` and just outside it.
