@@ -907,8 +907,15 @@ impl Deferred {
         d: DVec3,
         out: &mut SideRoots,
     ) -> Option<((f64, f64), bool)> {
-        let (range, cell, _) = self.cells[i];
+        let (range, cell, [w_lo, w_hi]) = self.cells[i];
         let r = &self.ranges[range];
+        if let Some(refine) = r.local
+            && let Some((u, w)) = solved_in_space(cyl, (refine, d), &r.k, r.u, &cell)
+            && (w_lo..=w_hi).contains(&w)
+        {
+            push(cyl, d, u, w, out);
+            return None;
+        }
         let mut roots = ArrayVec::new();
         if settle(&r.k, &cell, r.local.is_some(), &mut roots).is_none() {
             let (u0, u1) = r.u;
@@ -1167,6 +1174,122 @@ fn refined<C: CrossSection, S: SweepRule>(
     } else {
         (u, w)
     }
+}
+
+/// The crossing of a whole tube's root cell ([`whole_tube`]) found by Newton's method in space
+/// and certified by the cell's branch function: where it is, as `(u, w)`; `None` where Newton's
+/// method does not settle or the certificate fails (then the cell is polished on `H`, as
+/// others are). The start is the cell's (the straight tube's crossing, [`tube_cells`]): `u` there and
+/// the ray's crossing of the sphere of radius `r` about `a(u)` on the cell's side (`w0 ± sqrt((r^2
+/// - m^2) / |d|^2)`, `w0` the ray's point nearest `a(u)`, `m` its distance). See
+/// [`space_crossing_from`] for the rest.
+fn solved_in_space<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (refine, d): (Refine, DVec3),
+    k: &Polys,
+    (u0, u1): (f64, f64),
+    cell: &RootCell,
+) -> Option<(f64, f64)> {
+    let s = if cell.start > cell.s0 && cell.start < cell.s1 {
+        cell.start
+    } else {
+        cell.s0 + (cell.s1 - cell.s0) * (cell.fa / (cell.fa - cell.fb))
+    };
+    let u = u0 + (u1 - u0) * s;
+    let a = cyl.axis.point(u);
+    let (o, r, dd) = (refine.o, k.radius[0], d.length_squared());
+    let w0 = (a - o).dot(d) / dd;
+    let miss = (o + w0 * d - a).length_squared();
+    let w = w0 + cell.sign * ((r * r - miss).max(0.0) / dd).sqrt();
+    space_crossing_from(cyl, (refine.o, d), k, (u0, u1), cell, (u, w))
+}
+
+/// Most Newton steps [`space_crossing_from`] takes.
+const SPACE_STEPS: usize = 6;
+
+/// Where [`space_crossing_from`] stops: after a step of at most this in `u` that moves the
+/// point along the ray by at most this times the radius. Newton's error after it is about `C`
+/// times its square, `C` the conditions' second derivatives over their first (about 100 in
+/// `u` on the ponytail's tubes: steps of `1e-5`, `1e-8`, `1e-15` from the cells' starts), so
+/// at the coordinates' rounding; most crossings settle in three steps.
+const SPACE_SETTLED: f64 = 1e-10;
+
+/// How far either side of the crossing's `s` [`space_crossing_from`] looks for the branch
+/// function's change of sign: far above its rounding there (`D`'s on the whole axis moves its
+/// root by about `1e-13` of the axis' parameter), far below the cells' widths.
+const SPACE_BRACKET: f64 = 1e-9;
+
+/// Newton's method in space on a whole tube's crossing conditions (those of [`refined`]: `F1 =
+/// a'.e = 0`, `F2 = |e|^2 - r^2 = 0`, `e = o + w d - a(u)`) from `(u, w)`, until a step is
+/// below [`SPACE_SETTLED`], then certified as the cell's crossing:
+/// - `e.d` has the sign of the cell's branch (`-` for an entry: the ray's point enters the
+///   ball about `a(u)`), so the point is `z = Z(s) ± sqrt(D(s))` of that branch at `s`, the
+///   `s` of `u` on the range, and `H±(s) = a'.e` vanishes there (to rounding);
+/// - `s` lies in the cell, and `H±` changes sign between `s - SPACE_BRACKET` and `s +
+///   SPACE_BRACKET` as it does between the cell's ends (where those points reach past the cell,
+///   its end values stand for them): the branch's one root in the cell ([`tube_cells`]) lies
+///   within `SPACE_BRACKET` of `s`.
+///
+/// So the point found is that root's crossing, not the other branch's (an entry and an exit
+/// nearly in one normal plane have nearly one `s`) nor another point of the ray; and as
+/// [`refined`]'s, its rounding is the coordinates', not that of `D` on the whole axis. It takes
+/// about as many evaluations of `a`, `a'` and `a''` as the polish on `H` takes of `H` and `H'`,
+/// each a third of the work, and two values of `H` for the certificate.
+fn space_crossing_from<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    (o, d): (DVec3, DVec3),
+    k: &Polys,
+    (u0, u1): (f64, f64),
+    cell: &RootCell,
+    (mut u, mut w): (f64, f64),
+) -> Option<(f64, f64)> {
+    let r = k.radius[0];
+    let reach = SPACE_SETTLED * r / d.length();
+    let mut settled = false;
+    let mut e = DVec3::NAN;
+    for _ in 0..SPACE_STEPS {
+        let [a, a1, a2] = cyl.axis.jet(u);
+        e = o + w * d - a;
+        let (f1, f2) = (a1.dot(e), e.length_squared() - r * r);
+        let (j11, j12, j21, j22) = (
+            a2.dot(e) - a1.length_squared(),
+            a1.dot(d),
+            -2.0 * f1,
+            2.0 * e.dot(d),
+        );
+        let det = j11 * j22 - j12 * j21;
+        let (du, dw) = ((f1 * j22 - j12 * f2) / det, (j11 * f2 - j21 * f1) / det);
+        if !(du.is_finite() && dw.is_finite()) {
+            return None;
+        }
+        (u, w) = (u - du, w - dw);
+        if du.abs() <= SPACE_SETTLED && dw.abs() <= reach {
+            settled = true;
+            break;
+        }
+    }
+    // `e` as of the last step's start, a rounding's breadth from the point found (the whole
+    // tube's crossings are not grazing: [`WHOLE_MIN_COS`]).
+    if !settled || !(e.dot(d) * cell.sign > 0.0) {
+        return None;
+    }
+    let s = (u - u0) / (u1 - u0);
+    if !(s >= cell.s0 && s <= cell.s1) {
+        return None;
+    }
+    let (lo, hi) = (s - SPACE_BRACKET, s + SPACE_BRACKET);
+    let f_lo = if lo <= cell.s0 {
+        cell.fa
+    } else {
+        k.h(lo, cell.sign)
+    };
+    let f_hi = if hi >= cell.s1 {
+        cell.fb
+    } else {
+        k.h(hi, cell.sign)
+    };
+    let bracketed = f_lo * cell.fa > 0.0 && f_hi * cell.fb > 0.0;
+    bracketed.then_some((u, w))
 }
 
 /// Most times [`roots_in`] forms a range's polynomials again on a narrower part
@@ -1951,6 +2074,163 @@ mod tests {
             w = w.add(Dd::of(-(j11 * f2 - j21 * f1) / det));
         }
         (u.value(), w.value())
+    }
+
+    /// [`solved_in_space`] settles nearly every whole tube's cell, and where it does its
+    /// crossing is the one the polish on `H` and [`refined`] find (within a few units of the
+    /// coordinates' rounding over the cosine of incidence, both as close to the exact crossing:
+    /// [`whole_tube_crossings_are_as_close_as_the_narrow_ranges`]), on the same tubes and rays.
+    #[test]
+    fn crossings_solved_in_space_are_the_cells_crossings() {
+        use super::super::U_MARGIN;
+        use crate::Ray;
+        let mut rng = Lcg(37);
+        let (mut cells, mut solved) = (0, 0);
+        for i in 0..3000 {
+            let shift = if i % 2 == 0 {
+                DVec3::splat(1e4)
+            } else {
+                DVec3::ZERO
+            };
+            let curve = bent_axis(&mut rng, shift, [0.05, 0.2, 0.4][i % 3]);
+            let r = 10f64.powf(rng.range(-6.0, -0.5));
+            let Some(cyl) = round_fiber(curve, [r, r]) else {
+                continue;
+            };
+            let s = rng.range(0.05, 0.95);
+            let (t, across, side) = across_at(&mut rng, &curve, s);
+            let d = if i % 4 == 3 {
+                rng.unit()
+            } else {
+                (across + 10f64.powf(rng.range(-12.0, 0.0)) * t).normalize()
+            };
+            let p = curve.point(s) + side * (r * rng.range(-0.98, 0.98));
+            let ray = Ray {
+                origin: p - d * rng.range(0.5, 3.0),
+                dir: d * rng.range(0.5, 2.0),
+            };
+            let (o, _) = cyl.local_ray(&ray, &cyl.bounds());
+            let d = ray.dir;
+            let mut whole = Deferred::new();
+            let range = (-U_MARGIN, 1.0 + U_MARGIN);
+            if !whole_tube(&cyl, o, d, range, None, &mut whole) {
+                continue;
+            }
+            let size = cyl
+                .axis
+                .points
+                .iter()
+                .fold(o.abs().max_element(), |m, p| m.max(p.abs().max_element()));
+            for &(j, cell, _) in &whole.cells {
+                let k = &whole.ranges[j].k;
+                let refine = whole.ranges[j].local.expect("a whole tube's range");
+                cells += 1;
+                let Some((u, w)) = solved_in_space(&cyl, (refine, d), k, range, &cell) else {
+                    continue;
+                };
+                solved += 1;
+                let mut roots = ArrayVec::new();
+                settle(k, &cell, false, &mut roots).expect("a tube's cell settles");
+                let [(s, sign)] = roots.as_slice() else {
+                    panic!("case {i}: one root in the cell, not {roots:?}");
+                };
+                let w_h = (k.z.eval(*s) + sign * k.disc.eval(*s).max(0.0).sqrt()) / d.length();
+                let u_h = range.0 + (range.1 - range.0) * s;
+                let (u_h, w_h) = refined(&cyl, (refine, d), r, (u_h, w_h));
+                let e = o + w * d - cyl.axis.point(u);
+                let cos = (e.dot(d) / (r * d.length())).abs();
+                let allowance = 64.0 * f64::EPSILON * (size + (w * d).length()) / cos;
+                let speed = cyl.axis.d1(u).length();
+                assert!(
+                    ((w - w_h) * d).length() <= allowance && (u - u_h).abs() * speed <= allowance,
+                    "case {i}: r {r:e}, in space ({u}, {w}), on H ({u_h}, {w_h}), allowance \
+                     {allowance:e}"
+                );
+            }
+        }
+        println!("{solved} of {cells} cells solved in space");
+        assert!(
+            cells > 600 && solved as f64 >= 0.99 * cells as f64,
+            "{solved} of {cells}"
+        );
+    }
+
+    /// [`space_crossing_from`]'s certificate names the cell's crossing, not another: on a
+    /// straight tube and a ray across its axis tilted by `1e-12` (nearly in a normal plane),
+    /// whose entry and exit lie `1e-13` apart in `u` (so the branch function's bracket alone
+    /// cannot tell them apart), Newton's method started at the exit is refused for the entry's
+    /// cell (whose end at the closest approach lies between them) and for a wider cell of the
+    /// entry that holds both (by the sign of `e.d`), and started at the entry gives it;
+    /// started at the entry for a cell that does not hold it (one beside it, or one whose
+    /// branch function's end values have the other signs), it is refused.
+    #[test]
+    fn a_space_crossing_must_be_its_cells() {
+        use super::super::U_MARGIN;
+        use crate::Ray;
+        let curve = crate::curve::CubicBezier::new(std::array::from_fn(|j| {
+            DVec3::new(j as f64 / 3.0, 0.0, 0.0)
+        }));
+        let r = 0.05;
+        let cyl = round_fiber(curve, [r, r]).expect("a straight tube");
+        let ray = Ray {
+            origin: DVec3::new(0.4, -1.0, 0.01),
+            dir: DVec3::new(1e-12, 1.0, 0.0),
+        };
+        let (o, _) = cyl.local_ray(&ray, &cyl.bounds());
+        let d = ray.dir;
+        let range = (-U_MARGIN, 1.0 + U_MARGIN);
+        let mut whole = Deferred::new();
+        assert!(whole_tube(&cyl, o, d, range, None, &mut whole));
+        let (j, entry, _) = *whole
+            .cells
+            .iter()
+            .find(|c| c.1.sign < 0.0)
+            .expect("an entry cell");
+        let k = &whole.ranges[j].k;
+        // The crossings (the axis is `x = u` from the first control point, the cylinder's
+        // origin): `y = -+ sqrt(r^2 - z^2)` in the normal plane `x = u` of the ray's point.
+        let cross = |sign: f64| {
+            let w = sign * (r * r - o.z * o.z).sqrt() - o.y;
+            (o.x + w * d.x, w)
+        };
+        let ((u_in, w_in), (u_out, w_out)) = (cross(-1.0), cross(1.0));
+        // The entry's cell ends at the closest approach, between the two; a wider one (as
+        // valid: `H-` has one root on the axis) holds both.
+        let s_of = |u: f64| (u - range.0) / (range.1 - range.0);
+        let mut wide = entry;
+        wide.s1 = s_of(u_out) + 0.05;
+        wide.fb = k.h(wide.s1, -1.0);
+        assert!(
+            wide.fb < 0.0 && s_of(u_in) > wide.s0,
+            "the wider cell holds the entry"
+        );
+        let solve =
+            |cell: &RootCell, start| space_crossing_from(&cyl, (o, d), k, range, cell, start);
+        for cell in [entry, wide] {
+            let (u, w) = solve(&cell, (u_in, w_in)).expect("the entry, from the entry");
+            assert!(
+                (w - w_in).abs() < 1e-12 && (u - u_in).abs() < 1e-12,
+                "({u}, {w})"
+            );
+            assert_eq!(solve(&cell, (u_out, w_out)), None, "the exit refused");
+        }
+        // A cell whose branch function rose through its root (the end values' signs turned)
+        // does not hold this crossing, where it falls.
+        let mut rising = entry;
+        (rising.fa, rising.fb) = (-entry.fa, -entry.fb);
+        assert_eq!(
+            solve(&rising, (u_in, w_in)),
+            None,
+            "the bracket's signs checked"
+        );
+        let mut elsewhere = entry;
+        (elsewhere.s0, elsewhere.s1) = (entry.s0, s_of(u_in) - 0.1);
+        elsewhere.fb = k.h(elsewhere.s1, -1.0);
+        assert_eq!(
+            solve(&elsewhere, (u_in, w_in)),
+            None,
+            "a crossing outside the cell refused"
+        );
     }
 
     /// [`whole_tube`]'s crossings are as close to the exact ones (double-double Newton's method
