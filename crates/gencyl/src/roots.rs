@@ -1001,7 +1001,7 @@ pub(crate) fn bracketed_root_from(
     x0: f64,
     slopes: Slopes,
 ) -> Option<f64> {
-    newton_in_bracket(value, (a, b, fa, fb), x0, Stop::Slopes(slopes)).map(|(x, _)| x)
+    newton_in_bracket(value, (a, b, fa, fb), x0, Some(slopes)).map(|(x, _)| x)
 }
 
 /// [`bracketed_root`] from `x0`, and whether the bracket closed to the resolution of `f64` (or
@@ -1012,46 +1012,17 @@ pub(crate) fn converged_root_from(
     (a, b, fa, fb): Cell,
     x0: f64,
 ) -> Option<(f64, bool)> {
-    newton_in_bracket(value, (a, b, fa, fb), x0, Stop::Closed)
+    newton_in_bracket(value, (a, b, fa, fb), x0, None)
 }
 
-/// [`converged_root_from`], but stopping once a Newton step `x - y` is at most `tol` and `f`
-/// has the other sign at `x - 2 (x - y)` (the probe, one step past Newton's point `y`): the
-/// root in the bracket then lies between `x` and the probe, so `y` is within `|x - y|` of it,
-/// and is returned as converged (`true`). Near a simple root Newton's point is within about
-/// `|f''| / |f'| (x - y)^2` of it, far closer than the probe, which is why the probe brackets
-/// it; as close as a closed bracket would put it unless `tol` is loose. A caller that needs
-/// the root to rounding, not to `tol`, refines it after (the whole tube's crossings: one
-/// Newton step in space). Where the probe has `f`'s sign at `x`, the bracket shrinks to it and
-/// the iteration goes on.
-pub(crate) fn probed_root_from(
-    value: &impl Fn(f64) -> (f64, f64),
-    (a, b, fa, fb): Cell,
-    x0: f64,
-    tol: f64,
-) -> Option<(f64, bool)> {
-    newton_in_bracket(value, (a, b, fa, fb), x0, Stop::Probe(tol))
-}
-
-/// When [`newton_in_bracket`] may stop before its bracket closes.
-#[derive(Clone, Copy)]
-enum Stop {
-    /// Only when it closes ([`converged_root_from`]).
-    Closed,
-    /// Where the slope model proves an iterate ([`bracketed_root_from`]).
-    Slopes(Slopes),
-    /// Where a probe past Newton's point brackets it ([`probed_root_from`]).
-    Probe(f64),
-}
-
-/// Newton's method in the bracket, as [`bracketed_root_from`], [`converged_root_from`] and
-/// [`probed_root_from`] (one copy for each, so that each has only its own tests).
+/// Newton's method in the bracket, as [`bracketed_root_from`] and [`converged_root_from`] (one
+/// copy for each, so that the second's has no slope tests).
 #[inline(always)]
 fn newton_in_bracket(
     value: &impl Fn(f64) -> (f64, f64),
     (a, b, fa, fb): Cell,
     x0: f64,
-    stop: Stop,
+    slopes: Option<Slopes>,
 ) -> Option<(f64, bool)> {
     if fa == 0.0 {
         return Some((a, true));
@@ -1067,10 +1038,7 @@ fn newton_in_bracket(
     let mut x = if x0 > a && x0 < b { x0 } else { 0.5 * (a + b) };
     let mut last_width = b - a;
     let mut converged = false;
-    let min_slope = match stop {
-        Stop::Slopes(s) => s.min,
-        _ => 0.0,
-    };
+    let min_slope = slopes.map_or(0.0, |s| s.min);
     for _ in 0..200 {
         let (fx, dfx) = value(x);
         if !fx.is_finite() {
@@ -1092,7 +1060,7 @@ fn newton_in_bracket(
         }
         let step = fx / dfx;
         let mut newton = x - step;
-        if let Stop::Slopes(Slopes { centre, model, min }) = stop
+        if let Some(Slopes { centre, model, min }) = slopes
             && min > 0.0
             && newton > a
             && newton < b
@@ -1104,35 +1072,6 @@ fn newton_in_bracket(
                 + f64::EPSILON * dfx.abs();
             if step.abs() * change <= 0.5 * min * (f64::EPSILON * newton.abs()) {
                 return Some((newton, true));
-            }
-        }
-        if let Stop::Probe(tol) = stop
-            && step.abs() <= tol
-            && newton > a
-            && newton < b
-        {
-            let probe = x - 2.0 * step;
-            if probe > a && probe < b {
-                let (fp, _) = value(probe);
-                if !fp.is_finite() {
-                    return None;
-                }
-                if fp == 0.0 {
-                    return Some((probe, true));
-                }
-                if (fp > 0.0) != (fx > 0.0) {
-                    return Some((newton, true));
-                }
-                // Both on one side: the root lies beyond the probe, Newton's method goes on
-                // from there (evaluated again: a rare case).
-                if (fp > 0.0) == rising {
-                    (b, fb) = (probe, fp);
-                } else {
-                    (a, fa) = (probe, fp);
-                }
-                last_width = width;
-                x = probe;
-                continue;
             }
         }
         // Newton's iterates converge from one side, and the far end of the bracket stays put:
@@ -1208,126 +1147,6 @@ mod tests {
         );
     }
 
-    /// Test functions with a simple root: `x^2 - 2` (at `sqrt 2`), `sin x - 1/2` (at `pi / 6`)
-    /// and `d + 300 d^2 / (1 + (d / 1e-3)^2)`, `d = x - 1/3` (at [`THIRD`]; its curvature
-    /// concentrated within 1e-3 of the root, where steps that merely shrink misjudge it).
-    struct Square;
-    impl Function1D for Square {
-        fn eval<T: Real>(&self, x: T) -> T {
-            x * x - T::cst(2.0)
-        }
-    }
-    struct Sine;
-    impl Function1D for Sine {
-        fn eval<T: Real>(&self, x: T) -> T {
-            x.sin() - T::cst(0.5)
-        }
-    }
-    const THIRD: f64 = 1.0 / 3.0;
-    struct Curved;
-    impl Function1D for Curved {
-        fn eval<T: Real>(&self, x: T) -> T {
-            let d = x - T::cst(THIRD);
-            let q = d.scale(1e3);
-            d + (d * d).scale(300.0) / (T::cst(1.0) + q * q)
-        }
-    }
-
-    /// Newton's method with a probe stops once a step is below `tol` and the probe one step
-    /// past Newton's point has the other sign. Brackets 1e-9 to 0.3 wide about the roots of
-    /// [`Square`], [`Sine`], [`Curved`] and `d^3 + 1e-6 d` (`d = x - 0.3`, where Newton's
-    /// points fall short by two thirds of the way wherever `d^2 >> 1e-6`, so that the probe
-    /// has the iterate's sign and the iteration goes on), random starts, `tol` from 1e-12 to
-    /// 1e-1: the point returned is always within `tol` of the root (the probe's certificate;
-    /// a stop that ignored the probe's sign would return the cubic's points two steps short),
-    /// within `eps |r|` plus an ulp of it for the first two at `tol = 1e-9` (Newton's point is
-    /// then as close as a closed bracket's end), and found with fewer evaluations in all than
-    /// closing the bracket but on the cubic (where it is not about speed).
-    #[test]
-    fn a_probe_past_newtons_point_stops_it_early() {
-        struct Cubic;
-        impl Function1D for Cubic {
-            fn eval<T: Real>(&self, x: T) -> T {
-                let d = x - T::cst(0.3);
-                d * d * d + d.scale(1e-6)
-            }
-        }
-        use std::cell::Cell;
-        let mut rng = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64
-        };
-        fn solve<F: Function1D>(
-            f: &F,
-            (a, b, start, tol): (f64, f64, f64, f64),
-        ) -> ((f64, u32), (f64, u32)) {
-            let calls = Cell::new(0);
-            let value = |x: f64| {
-                calls.set(calls.get() + 1);
-                let r = f.eval(Dual::var(x));
-                (r.v, r.d)
-            };
-            let cell = (a, b, f.eval(a), f.eval(b));
-            let (probed, converged) = probed_root_from(&value, cell, start, tol).unwrap();
-            assert!(converged, "on [{a}, {b}] from {start}");
-            let with = calls.replace(0);
-            let (closed, _) = converged_root_from(&value, cell, start).unwrap();
-            ((probed, with), (closed, calls.get()))
-        }
-        let sqrt2 = std::f64::consts::SQRT_2;
-        let sixth = std::f64::consts::FRAC_PI_6;
-        let roots = [
-            ("square", sqrt2),
-            ("sine", sixth),
-            ("curved", THIRD),
-            ("cubic", 0.3),
-        ];
-        for (name, root) in roots {
-            let (mut with, mut without) = (0, 0);
-            let ulp = root.next_up() - root;
-            for _ in 0..3000 {
-                let width = 10f64.powf(-9.0 + 8.5 * next());
-                let a = root - (0.02 + 0.96 * next()) * width;
-                let b = a + width;
-                let start = a + next() * width;
-                let tol = if next() < 0.5 {
-                    1e-9
-                } else {
-                    10f64.powf(-12.0 + 11.0 * next())
-                };
-                let case = (a, b, start, tol);
-                let ((r, calls), (_, closing)) = match name {
-                    "square" => solve(&Square, case),
-                    "sine" => solve(&Sine, case),
-                    "curved" => solve(&Curved, case),
-                    _ => solve(&Cubic, case),
-                };
-                assert!(
-                    (r - root).abs() <= tol,
-                    "{name}: {r} is {:e} from the root, tol {tol:e}",
-                    r - root
-                );
-                if tol == 1e-9 && name != "curved" {
-                    assert!(
-                        (r - root).abs() <= f64::EPSILON * root + ulp,
-                        "{name}: {r} is {} ulps from the root",
-                        (r - root) / ulp
-                    );
-                }
-                with += calls;
-                without += closing;
-            }
-            eprintln!("{name}: {with} evaluations against {without} closing the bracket");
-            assert!(
-                with < without || name == "cubic",
-                "{name}: {with} against {without}"
-            );
-        }
-    }
-
     /// Newton's method with a slope model stops where the model proves an iterate, or the next
     /// one, within `eps |x|` of the root. Brackets 1e-9 to 0.3 wide about the roots of
     /// `x^2 - 2`, `sin x - 1/2` and `d + 300 d^2 / (1 + (d / 1e-3)^2)` with `d = x - 1/3` (its
@@ -1339,6 +1158,27 @@ mod tests {
     #[test]
     fn slope_models_stop_newton_at_a_proven_root() {
         use std::cell::Cell;
+        const THIRD: f64 = 1.0 / 3.0;
+        struct Square;
+        impl Function1D for Square {
+            fn eval<T: Real>(&self, x: T) -> T {
+                x * x - T::cst(2.0)
+            }
+        }
+        struct Sine;
+        impl Function1D for Sine {
+            fn eval<T: Real>(&self, x: T) -> T {
+                x.sin() - T::cst(0.5)
+            }
+        }
+        struct Curved;
+        impl Function1D for Curved {
+            fn eval<T: Real>(&self, x: T) -> T {
+                let d = x - T::cst(THIRD);
+                let q = d.scale(1e3);
+                d + (d * d).scale(300.0) / (T::cst(1.0) + q * q)
+            }
+        }
         fn run<F: Function1D>(f: &F, root: f64, slack_ulps: f64, rng: &mut u64) -> (u32, u32, u32) {
             let ulp = root.next_up() - root;
             let tolerance = f64::EPSILON * root.abs() + slack_ulps * ulp;

@@ -43,7 +43,7 @@ use crate::bernstein::Bernstein;
 use crate::cylinder::GeneralizedCylinder;
 use crate::frame::Frame;
 use crate::real::{Interval, Real, V2};
-use crate::roots::{bracketed_root, converged_root_from, probed_root_from};
+use crate::roots::{bracketed_root, converged_root_from};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
 
@@ -634,9 +634,7 @@ fn product_roots(k: &Polys) -> Option<ArrayVec<(f64, f64), 16>> {
 /// The roots of the cells ([`settle`]) into `out`, or `None` if the product method cannot
 /// certify them.
 fn settle_all(k: &Polys, cells: &[RootCell], out: &mut ArrayVec<(f64, f64), 16>) -> Option<()> {
-    cells
-        .iter()
-        .try_for_each(|cell| settle(k, cell, false, out))
+    cells.iter().try_for_each(|cell| settle(k, cell, out))
 }
 
 /// A cell `[s0, s1]` where `G` has exactly one (simple) root `r` (certified by
@@ -729,17 +727,14 @@ impl RootCell {
         })
     }
 
-    /// The root, polished on its branch and verified; `None` where it is not verified. With
-    /// `refined_after` (a whole tube's cell, whose crossing [`refined`] finishes in space),
-    /// Newton's method stops at a step below [`PROBED_STEP`] whose probe brackets the root
-    /// ([`probed_root_from`]), not at a closed bracket.
+    /// The root, polished on its branch and verified; `None` where it is not verified.
     ///
     /// Newton's method in the bracket finds a point `x` where `H_sign` changes sign. If `D(x)`
     /// exceeds its rounding bound, `H_sign` is the unclamped branch about `x`, so `x` is a root
     /// of `G`: it is `r`. Otherwise (a zero of `-P` where `D < 0`, or `r` where the ray grazes
     /// the sphere) `x` is taken only if `D > 0` on the whole cell (then `H_sign` has no other
     /// zero there).
-    fn polish(&self, k: &Polys, refined_after: bool) -> Option<f64> {
+    fn polish(&self, k: &Polys) -> Option<f64> {
         let (s0, s1, sign, fa, fb) = (self.s0, self.s1, self.sign, self.fa, self.fb);
         // Newton's method from the cell's start, or the bracket's secant point.
         let start = if self.start.is_nan() {
@@ -747,12 +742,8 @@ impl RootCell {
         } else {
             self.start
         };
-        let value = |s: f64| k.branch(s, sign);
-        let (r, converged) = if refined_after {
-            probed_root_from(&value, (s0, s1, fa, fb), start, PROBED_STEP)?
-        } else {
-            converged_root_from(&value, (s0, s1, fa, fb), start)?
-        };
+        let (r, converged) =
+            converged_root_from(&|s: f64| k.branch(s, sign), (s0, s1, fa, fb), start)?;
         (converged && k.disc.eval(r) > k.err_disc || positive_disc(k, s0, s1)).then_some(r)
     }
 
@@ -776,15 +767,10 @@ impl RootCell {
 }
 
 /// The roots of a cell, as `(s, sign)`, into `out`: its own root where [`RootCell::polish`]
-/// verifies it (`refined_after`: see there), otherwise those of its halves isolated again;
-/// `None` where the product method cannot certify them.
-fn settle(
-    k: &Polys,
-    cell: &RootCell,
-    refined_after: bool,
-    out: &mut ArrayVec<(f64, f64), 16>,
-) -> Option<()> {
-    if let Some(r) = cell.polish(k, refined_after) {
+/// verifies it, otherwise those of its halves isolated again; `None` where the product method
+/// cannot certify them.
+fn settle(k: &Polys, cell: &RootCell, out: &mut ArrayVec<(f64, f64), 16>) -> Option<()> {
+    if let Some(r) = cell.polish(k) {
         return out.try_push((r, cell.sign)).ok();
     }
     if cell.s1 - cell.s0 < 1e-6 {
@@ -917,7 +903,7 @@ impl Deferred {
             return None;
         }
         let mut roots = ArrayVec::new();
-        if settle(&r.k, &cell, r.local.is_some(), &mut roots).is_none() {
+        if settle(&r.k, &cell, &mut roots).is_none() {
             let (u0, u1) = r.u;
             let cell_u = (u0 + (u1 - u0) * cell.s0, u0 + (u1 - u0) * cell.s1);
             return subdivided(cyl, (d, r.local), &r.k, r.u, cell_u, out);
@@ -1065,14 +1051,6 @@ fn roots_in<C: CrossSection, S: SweepRule>(
 /// curvature `1 / (2 sqrt(D*))` against its slope), `2.5e-4` of it at the gate's edge, and in
 /// practice (the actual rounding is far below the bound) a few units of rounding.
 const WHOLE_START: f64 = 1e-3;
-
-/// Where a whole tube's polish stops ([`RootCell::polish`]): at a Newton step below this (in
-/// `s`, the whole axis' parameter) whose probe brackets the root. From there Newton's point is
-/// off by about the step squared times `|H''| / |H'|`, below `D`'s rounding on the whole axis,
-/// and [`refined`] takes it to the coordinates' rounding; closing the bracket would cost one
-/// or two more evaluations of `H` (most polishes start within `1e-4` of their cell, so the
-/// second step is already below this).
-const PROBED_STEP: f64 = 1e-9;
 
 /// The least cosine of incidence at which [`whole_tube`] takes a crossing: at grazing
 /// incidence the refinement's residual, rounded to the coordinates' size rather than the
@@ -1958,7 +1936,7 @@ mod tests {
             // Each cell as the query polishes it ([`Deferred::polish`]).
             for cell in &cells {
                 let mut one = ArrayVec::new();
-                if settle(&k, cell, false, &mut one).is_none() {
+                if settle(&k, cell, &mut one).is_none() {
                     unsettled += 1;
                     one = stretch_roots(&k, cell.s0, cell.s1).0;
                 }
@@ -2130,7 +2108,7 @@ mod tests {
                 };
                 solved += 1;
                 let mut roots = ArrayVec::new();
-                settle(k, &cell, false, &mut roots).expect("a tube's cell settles");
+                settle(k, &cell, &mut roots).expect("a tube's cell settles");
                 let [(s, sign)] = roots.as_slice() else {
                     panic!("case {i}: one root in the cell, not {roots:?}");
                 };
