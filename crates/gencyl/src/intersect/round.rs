@@ -1157,10 +1157,8 @@ fn refined<C: CrossSection, S: SweepRule>(
 /// The crossing of a whole tube's root cell ([`whole_tube`]) found by Newton's method in space
 /// and certified by the cell's branch function: where it is, as `(u, w)`; `None` where Newton's
 /// method does not settle or the certificate fails (then the cell is polished on `H`, as
-/// others are). The start is the cell's (the straight tube's crossing, [`tube_cells`]): `u` there and
-/// the ray's crossing of the sphere of radius `r` about `a(u)` on the cell's side (`w0 ± sqrt((r^2
-/// - m^2) / |d|^2)`, `w0` the ray's point nearest `a(u)`, `m` its distance). See
-/// [`space_crossing_from`] for the rest.
+/// others are). The start is the cell's `u` (the straight tube's crossing, [`tube_cells`]) with
+/// `w` on the sphere about `a(u)` ([`space_crossing_from`]).
 fn solved_in_space<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     (refine, d): (Refine, DVec3),
@@ -1174,12 +1172,7 @@ fn solved_in_space<C: CrossSection, S: SweepRule>(
         cell.s0 + (cell.s1 - cell.s0) * (cell.fa / (cell.fa - cell.fb))
     };
     let u = u0 + (u1 - u0) * s;
-    let a = cyl.axis.point(u);
-    let (o, r, dd) = (refine.o, k.radius[0], d.length_squared());
-    let w0 = (a - o).dot(d) / dd;
-    let miss = (o + w0 * d - a).length_squared();
-    let w = w0 + cell.sign * ((r * r - miss).max(0.0) / dd).sqrt();
-    space_crossing_from(cyl, (refine.o, d), k, (u0, u1), cell, (u, w))
+    space_crossing_from(cyl, (refine.o, d), k, (u0, u1), cell, (u, None))
 }
 
 /// Most Newton steps [`space_crossing_from`] takes.
@@ -1198,8 +1191,10 @@ const SPACE_SETTLED: f64 = 1e-10;
 const SPACE_BRACKET: f64 = 1e-9;
 
 /// Newton's method in space on a whole tube's crossing conditions (those of [`refined`]: `F1 =
-/// a'.e = 0`, `F2 = |e|^2 - r^2 = 0`, `e = o + w d - a(u)`) from `(u, w)`, until a step is
-/// below [`SPACE_SETTLED`], then certified as the cell's crossing:
+/// a'.e = 0`, `F2 = |e|^2 - r^2 = 0`, `e = o + w d - a(u)`) from `(u, w)` (where `w` is `None`,
+/// the ray's crossing of the sphere of radius `r` about `a(u)` on the cell's side: `w0 ±
+/// sqrt((r^2 - m^2) / |d|^2)`, `w0` the ray's point nearest `a(u)`, `m` its distance), until a
+/// step is below [`SPACE_SETTLED`], then certified as the cell's crossing:
 /// - `e.d` has the sign of the cell's branch (`-` for an entry: the ray's point enters the
 ///   ball about `a(u)`), so the point is `z = Z(s) ± sqrt(D(s))` of that branch at `s`, the
 ///   `s` of `u` on the range, and `H±(s) = a'.e` vanishes there (to rounding);
@@ -1219,14 +1214,21 @@ fn space_crossing_from<C: CrossSection, S: SweepRule>(
     k: &Polys,
     (u0, u1): (f64, f64),
     cell: &RootCell,
-    (mut u, mut w): (f64, f64),
+    (mut u, start_w): (f64, Option<f64>),
 ) -> Option<(f64, f64)> {
     let r = k.radius[0];
+    let mut w = start_w.unwrap_or(f64::NAN);
     let reach = SPACE_SETTLED * r / d.length();
     let mut settled = false;
     let mut e = DVec3::NAN;
     for _ in 0..SPACE_STEPS {
         let [a, a1, a2] = cyl.axis.jet(u);
+        if w.is_nan() {
+            let dd = d.length_squared();
+            let w0 = (a - o).dot(d) / dd;
+            let miss = (o + w0 * d - a).length_squared();
+            w = w0 + cell.sign * ((r * r - miss).max(0.0) / dd).sqrt();
+        }
         e = o + w * d - a;
         let (f1, f2) = (a1.dot(e), e.length_squared() - r * r);
         let (j11, j12, j21, j22) = (
@@ -2182,8 +2184,9 @@ mod tests {
             wide.fb < 0.0 && s_of(u_in) > wide.s0,
             "the wider cell holds the entry"
         );
-        let solve =
-            |cell: &RootCell, start| space_crossing_from(&cyl, (o, d), k, range, cell, start);
+        let solve = |cell: &RootCell, (u, w)| {
+            space_crossing_from(&cyl, (o, d), k, range, cell, (u, Some(w)))
+        };
         for cell in [entry, wide] {
             let (u, w) = solve(&cell, (u_in, w_in)).expect("the entry, from the entry");
             assert!(
