@@ -1122,20 +1122,38 @@ pub(crate) fn whole_tube<C: CrossSection, S: SweepRule>(
 }
 
 /// The crossing `(u, w)` of the local ray `o + w d` with the tube of radius `r` about the
-/// axis, after one Newton step from `(u, w)` on its conditions in space: `e = o + w d - a(u)`
-/// lies in the normal plane, `F1 = a'.e = 0`, on the circle, `F2 = |e|^2 - r^2 = 0`. The
-/// Jacobian is `[[a''.e - |a'|^2, a'.d], [-2 F1, 2 e.d]]`. `(u, w)` itself where the step is
-/// not finite, moves the point along the ray by more than `refine.reach`, or takes `u` out of
-/// `[0, 1]`: the crossing then stays where the whole axis' polynomials put it (still inside
-/// its cell's bounds), never somewhere the certificate does not cover.
+/// axis, after one Newton step from `(u, w)` on its conditions in space ([`space_step`]).
+/// `(u, w)` itself where the step is not finite, moves the point along the ray by more than
+/// `refine.reach`, or takes `u` out of `[0, 1]`: the crossing then stays where the whole axis'
+/// polynomials put it (still inside its cell's bounds), never somewhere the certificate does
+/// not cover.
 fn refined<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
     (refine, d): (Refine, DVec3),
     r: f64,
     (u, w): (f64, f64),
 ) -> (f64, f64) {
-    let o = refine.o;
-    let [a, a1, a2] = cyl.axis.jet(u);
+    let (du, dw, _) = space_step(cyl.axis.jet(u), (refine.o, d), r, w);
+    let (u1, w1) = (u - du, w - dw);
+    if (dw * d).length() <= refine.reach && (0.0..=1.0).contains(&u1) {
+        (u1, w1)
+    } else {
+        (u, w)
+    }
+}
+
+/// Newton's step `(du, dw)` (to be taken away from `(u, w)`) on the conditions in space of the
+/// local ray `o + w d` crossing the tube of radius `r`, from `[a, a', a'']` at `u`, with the
+/// offset `e = o + w d - a(u)` there: `e` lies in the normal plane, `F1 = a'.e = 0`, and on
+/// the circle, `F2 = |e|^2 - r^2 = 0`. The Jacobian is `[[a''.e - |a'|^2, a'.d], [-2 F1,
+/// 2 e.d]]`.
+#[inline]
+fn space_step(
+    [a, a1, a2]: [DVec3; 3],
+    (o, d): (DVec3, DVec3),
+    r: f64,
+    w: f64,
+) -> (f64, f64, DVec3) {
     let e = o + w * d - a;
     let (f1, f2) = (a1.dot(e), e.length_squared() - r * r);
     let (j11, j12, j21, j22) = (
@@ -1146,12 +1164,7 @@ fn refined<C: CrossSection, S: SweepRule>(
     );
     let det = j11 * j22 - j12 * j21;
     let (du, dw) = ((f1 * j22 - j12 * f2) / det, (j11 * f2 - j21 * f1) / det);
-    let (u1, w1) = (u - du, w - dw);
-    if (dw * d).length() <= refine.reach && (0.0..=1.0).contains(&u1) {
-        (u1, w1)
-    } else {
-        (u, w)
-    }
+    (du, dw, e)
 }
 
 /// The crossing of a whole tube's root cell ([`whole_tube`]) found by Newton's method in space
@@ -1229,16 +1242,8 @@ fn space_crossing_from<C: CrossSection, S: SweepRule>(
             let miss = (o + w0 * d - a).length_squared();
             w = w0 + cell.sign * ((r * r - miss).max(0.0) / dd).sqrt();
         }
-        e = o + w * d - a;
-        let (f1, f2) = (a1.dot(e), e.length_squared() - r * r);
-        let (j11, j12, j21, j22) = (
-            a2.dot(e) - a1.length_squared(),
-            a1.dot(d),
-            -2.0 * f1,
-            2.0 * e.dot(d),
-        );
-        let det = j11 * j22 - j12 * j21;
-        let (du, dw) = ((f1 * j22 - j12 * f2) / det, (j11 * f2 - j21 * f1) / det);
+        let (du, dw, at) = space_step([a, a1, a2], (o, d), r, w);
+        e = at;
         if !(du.is_finite() && dw.is_finite()) {
             return None;
         }
@@ -1707,12 +1712,12 @@ mod tests {
         }))
     }
 
+    /// A round fiber of the tests.
+    type RoundFiber = GeneralizedCylinder<crate::section::Section, crate::sweep::HairSweep>;
+
     /// The round fiber about `curve` whose radius runs from `r0` to `r1`, unless it is refused
     /// or may fold.
-    fn round_fiber(
-        curve: crate::curve::CubicBezier,
-        [r0, r1]: [f64; 2],
-    ) -> Option<GeneralizedCylinder<crate::section::Section, crate::sweep::HairSweep>> {
+    fn round_fiber(curve: crate::curve::CubicBezier, [r0, r1]: [f64; 2]) -> Option<RoundFiber> {
         let sweep = crate::sweep::HairSweep {
             major: [r0, r1],
             minor: [r0, r1],
@@ -2056,6 +2061,36 @@ mod tests {
         (u.value(), w.value())
     }
 
+    /// Case `i` of the whole-tube tests: a round tube about a bent axis ([`bent_axis`]; radius
+    /// `1e-6` to `0.3` of its length, at the origin and `1e4` from it) and a local ray `(o, d)`
+    /// across it (tilted from its normal plane down to `1e-12`, or from any direction, every
+    /// fourth case), entering between the axis and `0.98` of the radius from it; with the
+    /// radius. `None` where the fiber is refused or may fold.
+    fn whole_tube_case(rng: &mut Lcg, i: usize) -> Option<(RoundFiber, (DVec3, DVec3), f64)> {
+        let shift = if i.is_multiple_of(2) {
+            DVec3::splat(1e4)
+        } else {
+            DVec3::ZERO
+        };
+        let curve = bent_axis(rng, shift, [0.05, 0.2, 0.4][i % 3]);
+        let r = 10f64.powf(rng.range(-6.0, -0.5));
+        let cyl = round_fiber(curve, [r, r])?;
+        let s = rng.range(0.05, 0.95);
+        let (t, across, side) = across_at(rng, &curve, s);
+        let d = if i % 4 == 3 {
+            rng.unit()
+        } else {
+            (across + 10f64.powf(rng.range(-12.0, 0.0)) * t).normalize()
+        };
+        let p = curve.point(s) + side * (r * rng.range(-0.98, 0.98));
+        let ray = crate::Ray {
+            origin: p - d * rng.range(0.5, 3.0),
+            dir: d * rng.range(0.5, 2.0),
+        };
+        let (o, _) = cyl.local_ray(&ray, &cyl.bounds());
+        Some((cyl, (o, ray.dir), r))
+    }
+
     /// [`solved_in_space`] settles nearly every whole tube's cell, and where it does its
     /// crossing is the one the polish on `H` and [`refined`] find (within a few units of the
     /// coordinates' rounding over the cosine of incidence, both as close to the exact crossing:
@@ -2063,34 +2098,12 @@ mod tests {
     #[test]
     fn crossings_solved_in_space_are_the_cells_crossings() {
         use super::super::U_MARGIN;
-        use crate::Ray;
         let mut rng = Lcg(37);
         let (mut cells, mut solved) = (0, 0);
         for i in 0..3000 {
-            let shift = if i % 2 == 0 {
-                DVec3::splat(1e4)
-            } else {
-                DVec3::ZERO
-            };
-            let curve = bent_axis(&mut rng, shift, [0.05, 0.2, 0.4][i % 3]);
-            let r = 10f64.powf(rng.range(-6.0, -0.5));
-            let Some(cyl) = round_fiber(curve, [r, r]) else {
+            let Some((cyl, (o, d), r)) = whole_tube_case(&mut rng, i) else {
                 continue;
             };
-            let s = rng.range(0.05, 0.95);
-            let (t, across, side) = across_at(&mut rng, &curve, s);
-            let d = if i % 4 == 3 {
-                rng.unit()
-            } else {
-                (across + 10f64.powf(rng.range(-12.0, 0.0)) * t).normalize()
-            };
-            let p = curve.point(s) + side * (r * rng.range(-0.98, 0.98));
-            let ray = Ray {
-                origin: p - d * rng.range(0.5, 3.0),
-                dir: d * rng.range(0.5, 2.0),
-            };
-            let (o, _) = cyl.local_ray(&ray, &cyl.bounds());
-            let d = ray.dir;
             let mut whole = Deferred::new();
             let range = (-U_MARGIN, 1.0 + U_MARGIN);
             if !whole_tube(&cyl, o, d, range, None, &mut whole) {
@@ -2224,35 +2237,13 @@ mod tests {
     #[test]
     fn whole_tube_crossings_are_as_close_as_the_narrow_ranges() {
         use super::super::U_MARGIN;
-        use crate::Ray;
         let mut rng = Lcg(36);
         let (mut taken, mut compared) = (0, 0);
         let (mut worst, mut thinnest, mut thickest) = (0.0f64, f64::INFINITY, 0.0f64);
         for i in 0..3000 {
-            let shift = if i % 2 == 0 {
-                DVec3::splat(1e4)
-            } else {
-                DVec3::ZERO
-            };
-            let curve = bent_axis(&mut rng, shift, [0.05, 0.2, 0.4][i % 3]);
-            let r = 10f64.powf(rng.range(-6.0, -0.5));
-            let Some(cyl) = round_fiber(curve, [r, r]) else {
+            let Some((cyl, (o, d), r)) = whole_tube_case(&mut rng, i) else {
                 continue;
             };
-            let s = rng.range(0.05, 0.95);
-            let (t, across, side) = across_at(&mut rng, &curve, s);
-            let d = if i % 4 == 3 {
-                rng.unit()
-            } else {
-                (across + 10f64.powf(rng.range(-12.0, 0.0)) * t).normalize()
-            };
-            let p = curve.point(s) + side * (r * rng.range(-0.98, 0.98));
-            let ray = Ray {
-                origin: p - d * rng.range(0.5, 3.0),
-                dir: d * rng.range(0.5, 2.0),
-            };
-            let (o, _) = cyl.local_ray(&ray, &cyl.bounds());
-            let d = ray.dir;
             let range = (-U_MARGIN, 1.0 + U_MARGIN);
             let mut whole = Deferred::new();
             if !whole_tube(&cyl, o, d, range, None, &mut whole) || whole.cells.is_empty() {
