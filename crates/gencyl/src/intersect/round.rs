@@ -512,34 +512,55 @@ impl Product {
 /// has exactly one root in `[0, 1]`: it is `-P > 0` at 0 and `-P < 0` at 1 (`D < 0` there, and
 /// `P(0) < P(a) < 0 < P(b) < P(1)`). They are certified ([`RootCell::certain`]); `m` splits the
 /// range where the branch's sign there allows. `Z'` must keep one sign, as
-/// [`RootCell::w_range`] takes it. Returns, where it certifies, `D` at the crossings of the
-/// straight tube through `m`, `D(m) P' / (P' + Z'^2)` (`D(m)` times the squared sine of the
-/// angle between the ray and the axis; `+inf` where the range has no crossing): how deep
-/// the crossings lie in `D`, which sets how much `D`'s rounding moves them ([`whole_tube`]).
-fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<f64> {
+/// [`RootCell::w_range`] takes it.
+///
+/// With `ends_inside` (the whole axis, [`whole_tube`]), a tube of constant radius may also have
+/// `D >= 0` at an end (a ray that passes within `r` of the axis' end point, as near a strand's
+/// joints). The argument above still gives each branch at most one root on `[0, 1]` (every root
+/// where `D > 0` is a downward crossing, and `D(m) > 0` leaves `-P` no zero where `D <= 0`),
+/// so a branch has one where its values at the ends ([`branch_at_end`], certified beyond their
+/// rounding there) are positive then negative, and none where both have one sign and the end
+/// that shows it is inside a ball (both ends outside give `-P(0) > 0 > -P(1)`). `m` is then the
+/// end nearer `P`'s zero where `P` keeps one sign on the range.
+///
+/// Returns, where it certifies, `D` at the crossings of the straight tube through `m`, `D(m)
+/// P' / (P' + Z'^2)` (`D(m)` times the squared sine of the angle between the ray and the
+/// axis; `+inf` where the range has no crossing): how deep the crossings lie in `D`, which
+/// sets how much `D`'s rounding moves them ([`whole_tube`]).
+fn tube_cells(k: &Polys, ends_inside: bool, found: &mut ArrayVec<RootCell, 16>) -> Option<f64> {
     let d = &k.disc.0;
     let [r0, r1] = k.radius;
     let (rho, r_max) = (r1 - r0, r0.abs().max(r1.abs()));
     let z_range = bounds(&k.z_s, k.err_z);
+    // Both ends outside the balls about the axis (`D < 0`), or, where `ends_inside`, a
+    // constant radius (see below).
+    let outside = d[0] < -k.err_disc && d[6] < -k.err_disc;
     let applies = k.slope_lo > rho * rho
         && z_range.excludes_zero()
-        && d[0] < -k.err_disc
-        && d[6] < -k.err_disc;
+        && (outside || (ends_inside && rho == 0.0));
     if !applies {
         return None;
     }
     let (p0, p1) = (k.p.0[0], k.p.0[5]);
     // `D'/2 = r rho - P` at the ends (`r rho` rounded too).
     let err_q = k.err_p + SLACK * (r_max * rho).abs();
-    if p0 - r0 * rho > err_q || p1 - r1 * rho < -err_q {
+    if outside && (p0 - r0 * rho > err_q || p1 - r1 * rho < -err_q) {
         // `D'` keeps one sign (it falls): `D` is monotone, below its negative ends.
         return Some(f64::INFINITY);
     }
     // Newton's method on `P` (rising) from the secant point of its end values, until a step is
     // below 1e-6 (the next is then below about 1e-12): `m` only splits the range and starts the
     // polish, whose start is off by 1e-4 to 1e-5 of the cell anyway (the tube's curvature), and
-    // the certificate below holds or fails by what it checks at `m`, wherever `m` lies.
-    let mut m = if p1 > p0 { -p0 / (p1 - p0) } else { 0.5 };
+    // the certificate below holds or fails by what it checks at `m`, wherever `m` lies. Where
+    // `P` keeps one sign on the range (an end inside a ball; with both outside it changes
+    // sign), `m` is the end nearer its zero.
+    let mut m = if p0 >= 0.0 {
+        0.0
+    } else if p1 <= 0.0 {
+        1.0
+    } else {
+        -p0 / (p1 - p0)
+    };
     let mut slope = f64::NAN;
     for _ in 0..4 {
         let (p, ps) = k.p.eval_with_derivative(m);
@@ -584,18 +605,25 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<f64> {
     // sin^2` of the angle between them): `cos sqrt(D / P')` either side. Only a start.
     let zs = k.z_s.eval(m);
     let reach = zs.abs() * (dm / (slope * (slope + zs * zs))).sqrt();
-    // Both branches are `-P` at the ends (`D < 0` there, and a Bernstein form's end values
-    // are its end coefficients): `-p0` and `-p1`; at `m`, `-P ± Z' sqrt(D)` ([`Polys::parts`],
-    // from the `D` and `Z'` just evaluated).
+    // At `m`, `-P ± Z' sqrt(D)` ([`Polys::parts`], from the `D` and `Z'` just evaluated); at
+    // the ends, [`branch_at_end`].
     let (minus_p, across) = (-k.p.eval(m), zs * dm.sqrt());
     for sign in [-1.0, 1.0] {
-        let (fa, fm, fb) = (-p0, minus_p + sign * across, -p1);
+        let (fa, fb) = (branch_at_end(k, 0, sign)?, branch_at_end(k, 1, sign)?);
+        let fm = minus_p + sign * across;
         if !(fa > 0.0 && fb < 0.0) {
+            // No root of this branch on the range: certain where the end whose sign shows it
+            // lies inside a ball (`H` crosses zero only downward), not where both lie
+            // outside (there `-P(0) > 0 > -P(1)`, so such values are rounding's).
+            let inside = |j: usize| d[6 * j] >= -k.err_disc;
+            if (fa < 0.0 && inside(0) && fb < 0.0) || (fb > 0.0 && inside(1) && fa > 0.0) {
+                continue;
+            }
             return None;
         }
-        let (s0, s1, fa, fb, start) = if fm < 0.0 {
+        let (s0, s1, fa, fb, start) = if fm < 0.0 && m > 0.0 {
             (0.0, m, fa, fm, m - reach)
-        } else if fm > 0.0 {
+        } else if fm > 0.0 && m < 1.0 {
             (m, 1.0, fm, fb, m + reach)
         } else {
             (0.0, 1.0, fa, fb, f64::NAN)
@@ -613,6 +641,25 @@ fn tube_cells(k: &Polys, found: &mut ArrayVec<RootCell, 16>) -> Option<f64> {
             .ok()?;
     }
     Some(dm * slope / (slope + zs * zs))
+}
+
+/// Branch `sign`'s value at the end `j` (0 or 1) of the range, where its sign is certain:
+/// `-P` where `D < 0` there (an end coefficient; [`tube_cells`] shows its sign), else `-P ±
+/// Z' sqrt(D)` where it exceeds its rounding bound (`P`'s and `Z'`'s, and what `D`'s does to
+/// the square root: `sqrt(D + e) - sqrt(D - e)`, `e` its bound, at most `sqrt(2 e)`); `None`
+/// where it does not.
+fn branch_at_end(k: &Polys, j: usize, sign: f64) -> Option<f64> {
+    let (dj, pj, zj) = (k.disc.0[6 * j], k.p.0[5 * j], k.z_s.0[2 * j]);
+    if dj < -k.err_disc {
+        return Some(-pj);
+    }
+    let (high, low) = ((dj + k.err_disc).sqrt(), (dj - k.err_disc).max(0.0).sqrt());
+    let value = -pj + sign * zj * dj.max(0.0).sqrt();
+    let bound = k.err_p
+        + zj.abs() * (high - low)
+        + k.err_z * high
+        + 4.0 * f64::EPSILON * (pj.abs() + zj.abs() * high);
+    (value.abs() > bound).then_some(value)
 }
 
 /// The root cells of the whole range into `cells` ([`Product::new`], [`Product::cells`]);
@@ -1022,7 +1069,7 @@ fn roots_in<C: CrossSection, S: SweepRule>(
         return None;
     }
     let mut cells = ArrayVec::new();
-    if cyl.may_fold() || tube_cells(&k, &mut cells).is_none() {
+    if cyl.may_fold() || tube_cells(&k, false, &mut cells).is_none() {
         cells.clear();
         if product_cells(&k, &mut cells).is_none() {
             return subdivide(out, deferred);
@@ -1097,7 +1144,7 @@ pub(crate) fn whole_tube<C: CrossSection, S: SweepRule>(
         return true;
     }
     let mut cells = ArrayVec::new();
-    let Some(depth) = tube_cells(&k, &mut cells) else {
+    let Some(depth) = tube_cells(&k, true, &mut cells) else {
         return false;
     };
     let rounding = 16.0 * f64::EPSILON * k.disc.magnitude();
@@ -1839,7 +1886,7 @@ mod tests {
             let slow = subdivision_roots(&k);
             assert_eq!(slow.len(), crossings, "radii {r:?}: {slow:?}");
             let mut cells = ArrayVec::new();
-            if tube_cells(&k, &mut cells).is_some() {
+            if tube_cells(&k, false, &mut cells).is_some() {
                 let mut fast = ArrayVec::new();
                 settle_all(&k, &cells, &mut fast).expect("certified cells settle");
                 assert_eq!(fast.len(), crossings, "radii {r:?}: {cells:?}");
@@ -1853,13 +1900,15 @@ mod tests {
     /// radius), rays through points near the axis, grazing it (1e-9 to 1e-2 of the radius
     /// inside or outside), tilted from its normal plane by 1e-15 to 1 rad, exactly
     /// perpendicular, nearly along it (1e-8 to 1e-1 rad off, at 1e-12 to 1e-2 of the radius from
-    /// the surface), or from any direction, at the origin and at 1e4. Some of the misses are
-    /// certified too (no cells); the rest of the ranges are left to the product method.
+    /// the surface), or from any direction, at the origin and at 1e4; on ranges about the point,
+    /// beside it, or ending within three radii of it (one crossing on the range, the other
+    /// beyond an end inside a ball about the axis). Some of the misses are certified too (no
+    /// cells); the rest of the ranges are left to the product method.
     #[test]
     fn tube_cells_agree_with_stretch_roots() {
         let mut rng = Lcg(23);
         let (mut hits, mut misses, mut left, mut roots) = (0, 0, 0, 0);
-        let (mut tapered_hits, mut along_hits, mut unsettled) = (0, 0, 0);
+        let (mut tapered_hits, mut along_hits, mut unsettled, mut halves) = (0, 0, 0, 0);
         for i in 0..6000 {
             let shift = if i % 3 == 0 {
                 DVec3::splat(1e4)
@@ -1922,20 +1971,23 @@ mod tests {
                     (p - d * rng.range(0.5, 3.0), d)
                 }
             };
-            // On a range about the point, as the prefilter gives them (tens of radii wide), or
-            // one beside it (a fifth of the cases: mostly misses), in the cylinder's own
-            // coordinates.
+            // On a range about the point, as the prefilter gives them (tens of radii wide), one
+            // beside it (a fifth of the cases: mostly misses), or one that ends within three
+            // radii of it (a fifth: the end often inside a ball about the axis, and one
+            // crossing beyond it), in the cylinder's own coordinates.
             let h = 30.0 * r0;
-            let (u0, u1) = if i % 5 == 4 {
-                ((s + 0.5 * h).min(1.0 - h), (s + 2.0 * h).min(1.0))
-            } else {
-                ((s - h).max(0.0), (s + h).min(1.0))
+            let near = s + rng.range(-3.0, 3.0) * r0 / curve.d1(s).length();
+            let (u0, u1) = match i % 5 {
+                4 => ((s + 0.5 * h).min(1.0 - h), (s + 2.0 * h).min(1.0)),
+                3 if i % 2 == 0 => (near.min(1.0 - h).max(0.0), (s + 2.0 * h).min(1.0)),
+                3 => ((s - 2.0 * h).max(0.0), near.max(h).min(1.0)),
+                _ => ((s - h).max(0.0), (s + h).min(1.0)),
             };
             let piece = cyl.axis.segment(u0, u1);
             let o = o - cyl.origin;
             let k = Polys::new(piece.points, [radius(u0), radius(u1)], o, d, 0.0);
             let mut cells = ArrayVec::new();
-            if tube_cells(&k, &mut cells).is_none() {
+            if tube_cells(&k, true, &mut cells).is_none() {
                 left += 1;
                 continue;
             }
@@ -1971,6 +2023,9 @@ mod tests {
             }
             if fast.is_empty() {
                 misses += 1;
+            } else if fast.len() == 1 {
+                // One crossing on the range, the other beyond an end that lies inside a ball.
+                halves += 1;
             } else {
                 hits += 1;
                 tapered_hits += usize::from(tapered);
@@ -1989,7 +2044,14 @@ mod tests {
         assert!(hits > 1000, "certified crossings: {hits}");
         assert!(misses > 500, "certified misses: {misses}");
         assert!(left > 300, "ranges left to the product method: {left}");
-        assert!(roots == 2 * hits, "two roots a crossing: {roots} {hits}");
+        assert!(
+            halves > 20,
+            "crossings with the other beyond an end: {halves}"
+        );
+        assert!(
+            roots == 2 * hits + halves,
+            "two roots a crossing: {roots} {hits} {halves}"
+        );
         // Cells whose polish cannot verify a nearly tangent root (`D` at its rounding level, as
         // nearly along the axis) fall back to the subdivision: rarely.
         assert!(
@@ -2064,8 +2126,8 @@ mod tests {
     /// Case `i` of the whole-tube tests: a round tube about a bent axis ([`bent_axis`]; radius
     /// `1e-6` to `0.3` of its length, at the origin and `1e4` from it) and a local ray `(o, d)`
     /// across it (tilted from its normal plane down to `1e-12`, or from any direction, every
-    /// fourth case), entering between the axis and `0.98` of the radius from it; with the
-    /// radius. `None` where the fiber is refused or may fold.
+    /// fourth case), entering between the axis and `0.98` of the radius from it, every fifth
+    /// near an end; with the radius. `None` where the fiber is refused or may fold.
     fn whole_tube_case(rng: &mut Lcg, i: usize) -> Option<(RoundFiber, (DVec3, DVec3), f64)> {
         let shift = if i.is_multiple_of(2) {
             DVec3::splat(1e4)
@@ -2075,7 +2137,12 @@ mod tests {
         let curve = bent_axis(rng, shift, [0.05, 0.2, 0.4][i % 3]);
         let r = 10f64.powf(rng.range(-6.0, -0.5));
         let cyl = round_fiber(curve, [r, r])?;
-        let s = rng.range(0.05, 0.95);
+        // Every fifth ray passes within a hundredth of the axis' length of an end (through
+        // the ball about its end point, often: one crossing or none on this fiber).
+        let s = match i % 5 {
+            2 => rng.range(-0.01, 0.01) + if i % 2 == 0 { 0.0 } else { 1.0 },
+            _ => rng.range(0.05, 0.95),
+        };
         let (t, across, side) = across_at(rng, &curve, s);
         let d = if i % 4 == 3 {
             rng.unit()
@@ -2238,7 +2305,7 @@ mod tests {
     fn whole_tube_crossings_are_as_close_as_the_narrow_ranges() {
         use super::super::U_MARGIN;
         let mut rng = Lcg(36);
-        let (mut taken, mut compared) = (0, 0);
+        let (mut taken, mut compared, mut one, mut none) = (0, 0, 0, 0);
         let (mut worst, mut thinnest, mut thickest) = (0.0f64, f64::INFINITY, 0.0f64);
         for i in 0..3000 {
             let Some((cyl, (o, d), r)) = whole_tube_case(&mut rng, i) else {
@@ -2246,9 +2313,13 @@ mod tests {
             };
             let range = (-U_MARGIN, 1.0 + U_MARGIN);
             let mut whole = Deferred::new();
-            if !whole_tube(&cyl, o, d, range, None, &mut whole) || whole.cells.is_empty() {
+            if !whole_tube(&cyl, o, d, range, None, &mut whole) {
                 continue;
             }
+            // Near an end: one crossing on the fiber, or none (the ray crosses the surface
+            // beyond the end).
+            one += usize::from(whole.cells.len() == 1);
+            none += usize::from(whole.cells.is_empty());
             taken += 1;
             (thinnest, thickest) = (thinnest.min(r), thickest.max(r));
             let mut narrow = Deferred::new();
@@ -2302,11 +2373,12 @@ mod tests {
             }
         }
         println!(
-            "taken {taken}, compared {compared}, worst {worst:.3}, radii {thinnest:e} to {thickest:e}"
+            "taken {taken} (one crossing {one}, none {none}), compared {compared}, worst \
+             {worst:.3}, radii {thinnest:e} to {thickest:e}"
         );
         assert!(
-            taken > 300 && compared > 600,
-            "taken {taken}, compared {compared}"
+            taken > 300 && compared > 600 && one > 10 && none > 10,
+            "taken {taken}, compared {compared}, one crossing {one}, none {none}"
         );
         assert!(
             thinnest < 1e-5 && thickest > 0.1,
