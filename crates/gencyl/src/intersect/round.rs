@@ -2140,7 +2140,7 @@ mod tests {
         // Every fifth ray passes within a hundredth of the axis' length of an end (through
         // the ball about its end point, often: one crossing or none on this fiber).
         let s = match i % 5 {
-            2 => rng.range(-0.01, 0.01) + if i % 2 == 0 { 0.0 } else { 1.0 },
+            2 => rng.range(-0.01, 0.01) + if i.is_multiple_of(2) { 0.0 } else { 1.0 },
             _ => rng.range(0.05, 0.95),
         };
         let (t, across, side) = across_at(rng, &curve, s);
