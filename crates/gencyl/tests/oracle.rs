@@ -274,6 +274,13 @@ fn case(name: &str) -> Case {
             trilobal_points(),
             fiber(curve_3d(), [0.06, 0.05], [0.05, 0.04], [0.0, PI], true),
         ),
+        // A three-lobed profile of constant size: the General method's window where `phi` may
+        // lie in the profile's bounding disc comes from a tube's crossings on the whole axis.
+        "trilobal-tube" => loop_case(
+            "trilobal-tube",
+            trilobal_points(),
+            fiber(curve_3d(), [0.06, 0.06], [0.06, 0.06], [0.0, PI], true),
+        ),
         // A U-bend whose radius of curvature at the apex (about 0.3) is below the section's reach:
         // the swept surface folds through the solid there (errata 5).
         "fold-round" => Case {
@@ -571,6 +578,15 @@ fn oracle_trilobal_loop() {
     run_case(
         &case("trilobal"),
         11,
+        &[(Method::Auto, 1000), (Method::General, 1000)],
+    );
+}
+
+#[test]
+fn oracle_trilobal_tube_loop() {
+    run_case(
+        &case("trilobal-tube"),
+        14,
         &[(Method::Auto, 1000), (Method::General, 1000)],
     );
 }

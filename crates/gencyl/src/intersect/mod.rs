@@ -18,7 +18,10 @@
 //!   as seed 2.3 has it: the curve `phi` intersected with the section by subdivision
 //!   ([`curve_curve`]), working with `q phi` (see [`Radial`]), finite through the poles of
 //!   `phi`; elsewhere the ray's crossings of the section's prism in the normal-plane
-//!   condition, a regular system in `(u, v)` ([`prism`]).
+//!   condition, a regular system in `(u, v)` ([`prism`]). The search keeps to the window where
+//!   `phi` lies in the section's bounding disc (1% grown): the zeros of [`Radial`] for that
+//!   radius, or where the rule scales uniformly by a constant, the crossings of the tube it
+//!   makes about the whole axis ([`round::tube_window`]), without the prefilter.
 //! - Caps: the ray against the planes at `u = 0` and `u = 1`, inside the section.
 
 mod branches;
@@ -841,7 +844,16 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             radius: r,
         };
         let mut found = ArrayVec::new();
-        let profiled = !self.section.implicit_pieces().is_empty();
+        let search = (r, (lo, hi));
+        // Where the disc is a tube about the axis, its crossings on the whole axis give the
+        // window at once, without the prefilter's ranges or the disc's isolation.
+        if let Some(window) = self.disc_window(o, d, (lo, hi), r) {
+            if let Some((a, b)) = window {
+                self.search_window((o, d), (a, b), b, search, radial_cells, &mut found);
+            }
+            self.push_general_roots(o, d, &mut found, out);
+            return;
+        }
         for (a, b) in prefilter::candidate_ranges(self, o, d, oblique_core) {
             let (a, b) = widen(a, b, lo, hi);
             if !self.oblique(d, a, b) {
@@ -872,33 +884,74 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 if !(b > a && (merged || g.eval(0.5 * (a + b)) < 0.0)) {
                     continue;
                 }
-                // A profile's halves of the range wait for a query to reach them; with no
-                // room for them, the rest of the range waits as one cell.
-                if profiled {
-                    let halves = radial_cells::profile_halves(a, b);
-                    if radial_cells.add_profile(self, (o, d), &halves, (r, (lo, hi)), 1) {
-                        continue;
-                    }
-                    if radial_cells.add_profile(self, (o, d), &[(a, end)], (r, (lo, hi)), 0) {
-                        break;
-                    }
-                }
-                // Searched at once: what does not fit is counted.
-                let mut eager = |range| {
-                    if !self.general_window_roots((o, d), range, r, (lo, hi), &mut found) {
-                        crate::budget::note_exhausted();
-                    }
-                };
-                if !profiled {
-                    eager((a, b));
-                } else {
-                    radial_cells::profile_halves(a, b)
-                        .into_iter()
-                        .for_each(eager);
+                if self.search_window((o, d), (a, b), end, search, radial_cells, &mut found) {
+                    break;
                 }
             }
         }
         self.push_general_roots(o, d, &mut found, out);
+    }
+
+    /// The General method's window `[a, b]` where `phi` lies in the section's bounding disc
+    /// when the rule scales uniformly by a constant `k` (the disc of radius `disc` is then the
+    /// tube of radius `disc k` about the axis), from that tube's crossings on the whole axis
+    /// ([`round::tube_window`]): `Some(None)` where the ray certainly passes outside it; `None`
+    /// where they are not certified, or the window is not oblique (then the prefilter's ranges
+    /// take the ray).
+    fn disc_window(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        range: (f64, f64),
+        disc: f64,
+    ) -> Option<Option<(f64, f64)>> {
+        let [k0, k1] = self.sweep.uniform_scale()?;
+        if k0 != k1 || self.may_fold() {
+            return None;
+        }
+        let window = round::tube_window(self, o, d, range, disc * k0.abs())?;
+        match window {
+            Some((a, b)) if !self.oblique(d, a, b) => None,
+            _ => Some(window),
+        }
+    }
+
+    /// Searches the General method's window `[a, b]` (of a range ending at `end`) for roots:
+    /// a profile's halves wait in `radial_cells` for a query to reach them (with no room for
+    /// them, the rest of the range waits as one cell: returns true, nothing more to search);
+    /// else every piece is searched at once into `found`, and what does not fit is counted.
+    fn search_window(
+        &self,
+        (o, d): (DVec3, DVec3),
+        (a, b): (f64, f64),
+        end: f64,
+        (r, valid): (f64, (f64, f64)),
+        radial_cells: &mut radial_cells::RadialCells,
+        found: &mut curve_curve::Found,
+    ) -> bool {
+        let profiled = !self.section.implicit_pieces().is_empty();
+        if profiled {
+            let halves = radial_cells::profile_halves(a, b);
+            if radial_cells.add_profile(self, (o, d), &halves, (r, valid), 1) {
+                return false;
+            }
+            if radial_cells.add_profile(self, (o, d), &[(a, end)], (r, valid), 0) {
+                return true;
+            }
+        }
+        let mut eager = |range| {
+            if !self.general_window_roots((o, d), range, r, valid, found) {
+                crate::budget::note_exhausted();
+            }
+        };
+        if !profiled {
+            eager((a, b));
+        } else {
+            radial_cells::profile_halves(a, b)
+                .into_iter()
+                .for_each(eager);
+        }
+        false
     }
 
     /// The General method's roots `(u, v)` on `[a, b]`, where `phi` lies in the disc of radius

@@ -1177,6 +1177,45 @@ pub(crate) fn whole_tube<C: CrossSection, S: SweepRule>(
     true
 }
 
+/// The part of the whole `u` range `[u0, u1]` outside which the local ray `o + w d` passes
+/// farther than `r` from the axis (its point in the normal plane at `u`), for a constant `r`
+/// at which the fiber's tube does not fold (the caller's): from the tube's two crossings
+/// there, certified by [`tube_cells`] and found by [`solved_in_space`], each within
+/// [`SPACE_BRACKET`] of the `s` found (the window reaches that far beyond them). `Some(None)`
+/// where the ray certainly passes outside the tube, `None` where neither is certified (a
+/// graze, an end inside the tube, a ray across the axis somewhere).
+///
+/// The General method's window where `phi` may lie in the section's bounding disc, where the
+/// rule scales uniformly ([`GeneralizedCylinder::disc_window`]): the disc function `g` is
+/// `q^2 (|e|^2 / s^2 - R^2)` there, zero on this tube.
+pub(crate) fn tube_window<C: CrossSection, S: SweepRule>(
+    cyl: &GeneralizedCylinder<C, S>,
+    o: DVec3,
+    d: DVec3,
+    (u0, u1): (f64, f64),
+    r: f64,
+) -> Option<Option<(f64, f64)>> {
+    let k = Polys::new(cyl.axis.segment(u0, u1).points, [r, r], o, d, 0.0);
+    let mut cells = ArrayVec::new();
+    tube_cells(&k, false, &mut cells)?;
+    let [first, second] = match cells.as_slice() {
+        [] => return Some(None),
+        [a, b] => [a, b],
+        _ => return None,
+    };
+    let refine = Refine { o, reach: 0.0 };
+    let s_of = |cell: &RootCell| {
+        let (u, _) = solved_in_space(cyl, (refine, d), &k, (u0, u1), cell)?;
+        Some((u - u0) / (u1 - u0))
+    };
+    let (sa, sb) = (s_of(first)?, s_of(second)?);
+    let at = |s: f64| u0 + (u1 - u0) * s.clamp(0.0, 1.0);
+    Some(Some((
+        at(sa.min(sb) - SPACE_BRACKET),
+        at(sa.max(sb) + SPACE_BRACKET),
+    )))
+}
+
 /// The crossing `(u, w)` of the local ray `o + w d` with the tube of radius `r` about the
 /// axis, after one Newton step from `(u, w)` on its conditions in space ([`space_step`]).
 /// `(u, w)` itself where the step is not finite, moves the point along the ray by more than
@@ -2165,6 +2204,143 @@ mod tests {
         };
         let (o, _) = cyl.local_ray(&ray, &cyl.bounds());
         Some((cyl, (o, ray.dir), r))
+    }
+
+    /// [`tube_window`] holds every `u` whose normal-plane point of the ray lies inside the
+    /// tube, and little more; where it reports a miss, none does. Brute force against the
+    /// definition: `e(u) = o + w(u) d - a(u)`, `w(u) = a'.(a - o) / (a'.d)`, sampled densely
+    /// and at the closest approach (golden section about the best sample), and the inside
+    /// set's ends by bisection on `|e|^2 - r^2`. The tubes and rays of [`whole_tube_case`]
+    /// (radii `1e-6` to `0.3` of the length, axes at the origin and at `1e4`, rays tilted
+    /// `1e-12` to 1 from the normal plane, through the ends' balls), every third one moved
+    /// to pass at `r (1 -+ 10^-k)` from the axis, `k` up to 9 (grazes, inside and out).
+    #[test]
+    fn tube_windows_hold_the_tubes_inside() {
+        use super::super::U_MARGIN;
+        let mut rng = Lcg(38);
+        let (lo, hi) = (-U_MARGIN, 1.0 + U_MARGIN);
+        let (mut windows, mut misses, mut refused, mut grazes) = (0, 0, 0, 0);
+        // Most rays nearly in a normal plane are refused (`a'.d` changes sign on the axis).
+        for i in 0..9000 {
+            let Some((cyl, (o, d), r)) = whole_tube_case(&mut rng, i) else {
+                continue;
+            };
+            let axis = cyl.axis;
+            let e_at = |u: f64| {
+                let (a, a1) = (axis.point(u), axis.d1(u));
+                let w = a1.dot(a - o) / a1.dot(d);
+                o + w * d - a
+            };
+            // A graze: the ray moved across so that its closest approach to the axis point
+            // it aimed at is `r (1 -+ 10^-k)`.
+            let o = if i % 3 == 1 {
+                let s = rng.range(0.1, 0.9);
+                let e = e_at(s);
+                let k = 10f64.powf(-rng.range(1.0, 9.0));
+                let depth = if rng.range(0.0, 1.0) < 0.5 {
+                    1.0 - k
+                } else {
+                    1.0 + k
+                };
+                grazes += 1;
+                o + e.normalize_or_zero() * (r * depth - e.length())
+            } else {
+                o
+            };
+            let e_at = |u: f64| {
+                let (a, a1) = (axis.point(u), axis.d1(u));
+                let w = a1.dot(a - o) / a1.dot(d);
+                o + w * d - a
+            };
+            // What `|e|`'s rounding may hide: a few units of the coordinates' size.
+            let size = axis
+                .points
+                .iter()
+                .fold(o.length(), |m, p| m.max(p.length()));
+            let err = 64.0 * f64::EPSILON * (size + r);
+            let surely_inside = |u: f64| e_at(u).length() < r - err;
+            let n = 4000;
+            let samples: Vec<f64> = (0..=n)
+                .map(|j| lo + (hi - lo) * j as f64 / n as f64)
+                .collect();
+            let best = samples
+                .iter()
+                .copied()
+                .min_by(|&x, &y| e_at(x).length().total_cmp(&e_at(y).length()))
+                .unwrap();
+            // Golden section on the best sample's neighbourhood.
+            let step = (hi - lo) / n as f64;
+            let (mut x0, mut x1) = ((best - step).max(lo), (best + step).min(hi));
+            for _ in 0..80 {
+                let (m0, m1) = (x0 + 0.382 * (x1 - x0), x0 + 0.618 * (x1 - x0));
+                if e_at(m0).length() < e_at(m1).length() {
+                    x1 = m1;
+                } else {
+                    x0 = m0;
+                }
+            }
+            let closest = 0.5 * (x0 + x1);
+            let Some(window) = tube_window(&cyl, o, d, (lo, hi), r) else {
+                refused += 1;
+                continue;
+            };
+            let Some((a, b)) = window else {
+                misses += 1;
+                for &u in samples.iter().chain([&closest]) {
+                    assert!(
+                        !surely_inside(u),
+                        "case {i}: a miss, but u = {u} is {} inside the tube of radius {r}",
+                        r - e_at(u).length()
+                    );
+                }
+                continue;
+            };
+            windows += 1;
+            assert!(lo <= a && a < b && b <= hi, "case {i}: window ({a}, {b})");
+            for &u in samples.iter().chain([&closest]) {
+                assert!(
+                    !surely_inside(u) || (a <= u && u <= b),
+                    "case {i}: u = {u}, inside the tube, outside the window ({a}, {b})"
+                );
+            }
+            // Tight: the inside set's ends by bisection from the closest approach, and the
+            // window's ends no farther from them than its margin and the ends' rounding.
+            if !surely_inside(closest) {
+                continue;
+            }
+            let crossing = |mut inside: f64, mut outside: f64| {
+                for _ in 0..200 {
+                    let m = 0.5 * (inside + outside);
+                    if m == inside || m == outside {
+                        break;
+                    }
+                    if e_at(m).length_squared() < r * r {
+                        inside = m;
+                    } else {
+                        outside = m;
+                    }
+                }
+                inside
+            };
+            let (ua, ub) = (crossing(closest, lo), crossing(closest, hi));
+            let slack = 2.0 * SPACE_BRACKET * (hi - lo) + 1e-12;
+            let moved = |u: f64| {
+                // How far `u` may be from the crossing for the bisection's `|e|` to be off by
+                // `err`: `err` over `|e|`'s rate there.
+                let h = 1e-7;
+                let rate = (e_at(u + h).length() - e_at(u - h).length()).abs() / (2.0 * h);
+                err / rate
+            };
+            assert!(
+                a >= ua - slack - moved(ua) && b <= ub + slack + moved(ub),
+                "case {i}: window ({a}, {b}) against the inside set ({ua}, {ub})"
+            );
+        }
+        println!("windows {windows}, misses {misses}, refused {refused}, grazes {grazes}");
+        assert!(
+            windows > 700 && misses > 80 && grazes > 1500,
+            "windows {windows}, misses {misses}, refused {refused}, grazes {grazes}"
+        );
     }
 
     /// [`solved_in_space`] settles nearly every whole tube's cell, and where it does its
