@@ -1756,6 +1756,18 @@ mod tests {
         }
     }
 
+    /// The products' tests' magnitude (`1e-8` to `1e8`) and domain half-width (every third
+    /// case a constant's, 0) for case `case`.
+    fn product_case(rng: &mut Lcg, case: usize) -> (f64, f64) {
+        let scale = 10f64.powf(rng.range(-8.0, 8.0));
+        let h = if case % 3 == 0 {
+            0.0
+        } else {
+            rng.range(0.0, 0.5)
+        };
+        (scale, h)
+    }
+
     /// The rounding bounds of `mul` and `sqr` hold with no slack: for models without a
     /// remainder, `(a0 + a1 t)(b0 + b1 t)` in double-double at points across `[-h, h]` (and
     /// constants, `h = 0`, where the remainder is only rounding) lies within `rho` of the
@@ -1766,12 +1778,7 @@ mod tests {
         let mut rng = Lcg(99);
         let mut tight = 0.0f64;
         for case in 0..20000 {
-            let scale = 10f64.powf(rng.range(-8.0, 8.0));
-            let h = if case % 3 == 0 {
-                0.0
-            } else {
-                rng.range(0.0, 0.5)
-            };
+            let (scale, h) = product_case(&mut rng, case);
             let model = |rng: &mut Lcg| Taylor {
                 c: rng.range(-1.0, 1.0) * scale,
                 s: if h == 0.0 {
@@ -1836,12 +1843,7 @@ mod tests {
         let mut rng = Lcg(2026);
         let mut tight = 0.0f64;
         for case in 0..20000 {
-            let scale = 10f64.powf(rng.range(-8.0, 8.0));
-            let h = if case % 3 == 0 {
-                0.0
-            } else {
-                rng.range(0.0, 0.5)
-            };
+            let (scale, h) = product_case(&mut rng, case);
             let exact_case = case % 2 == 0;
             let model = |rng: &mut Lcg| {
                 // A constant now and then, as the radial function's factors have them.
