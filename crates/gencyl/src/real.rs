@@ -1760,7 +1760,7 @@ mod tests {
     /// case a constant's, 0) for case `case`.
     fn product_case(rng: &mut Lcg, case: usize) -> (f64, f64) {
         let scale = 10f64.powf(rng.range(-8.0, 8.0));
-        let h = if case % 3 == 0 {
+        let h = if case.is_multiple_of(3) {
             0.0
         } else {
             rng.range(0.0, 0.5)
