@@ -897,7 +897,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// tube of radius `disc k` about the axis), from that tube's crossings on the whole axis
     /// ([`round::tube_window`]): `Some(None)` where the ray certainly passes outside it; `None`
     /// where they are not certified, or the window is not oblique (then the prefilter's ranges
-    /// take the ray).
+    /// take the ray). A fiber that cannot fold ([`Self::may_fold`], whose test keeps 1% to
+    /// spare: `r kappa < 0.99`) cannot fold at the disc's 1% larger radius either.
     fn disc_window(
         &self,
         o: DVec3,

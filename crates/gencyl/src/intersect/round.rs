@@ -1203,6 +1203,7 @@ pub(crate) fn tube_window<C: CrossSection, S: SweepRule>(
         [a, b] => [a, b],
         _ => return None,
     };
+    // The solve takes only the origin from it (no refinement follows).
     let refine = Refine { o, reach: 0.0 };
     let s_of = |cell: &RootCell| {
         let (u, _) = solved_in_space(cyl, (refine, d), &k, (u0, u1), cell)?;
