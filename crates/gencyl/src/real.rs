@@ -873,10 +873,9 @@ impl Mul for Taylor {
     /// the smallest normal `2^-1022` (absorbed, where a factor is larger than `2^-969`, by the
     /// bound's slack).
     ///
-    /// The domain's half-width must lie within about `1e-150` and `1e10` (an independent
-    /// review: below, `h * h` underflows and drops the `t^2` term; above, an underflowed slope
-    /// product is scaled past the bound). The isolators' cells are at least `1e-10` wide
-    /// ([`crate::roots::IsolateOptions`]) and lie within the axis' parameter range.
+    /// `shift` is `(a1 h)(b1 h) / 2`, each slope scaled by `h` first: as `(a1 b1) h^2` it lost
+    /// the `t^2` term where `h * h` underflowed (`h` below `1e-154`), and scaled an underflowed
+    /// `a1 b1` past the bound where `h` was huge (an independent review).
     ///
     /// Not inlined, unlike the other operations: the enclosures of the radial function and of
     /// the General method's `phi` each inlined well over a hundred products, and their code
@@ -889,10 +888,11 @@ impl Mul for Taylor {
         let h = fmax(self.h, o.h);
         let c0 = self.c * o.c;
         let (s1, s2) = (self.c * o.s, self.s * o.c);
-        let shift = 0.5 * (self.s * o.s) * (h * h);
+        let (ah, bh) = (self.s * h, o.s * h);
+        let shift = 0.5 * (ah * bh);
         let c = c0 + shift;
-        let ra = self.c.abs() + self.s.abs() * h;
-        let rb = o.c.abs() + o.s.abs() * h;
+        let ra = self.c.abs() + ah.abs();
+        let rb = o.c.abs() + bh.abs();
         let rho = shift.abs()
             + ra * o.rho
             + rb * self.rho
@@ -944,12 +944,11 @@ impl Real for Taylor {
         // The models' domains are one `[-h, h]`, or a constant's (`h = 0`, `s = 0`): the
         // largest `h` is each product's.
         let h = fmax(fmax(a.v.h, a.d.h), fmax(b.v.h, b.d.h));
-        let h2 = h * h;
         let mag = |x: Taylor| x.c.abs() + x.s.abs() * h;
         let (av, ad, bv, bd) = (mag(a.v), mag(a.d), mag(b.v), mag(b.d));
         // One product's centre, slope and remainder (`Mul`'s terms).
         let product = |x: Taylor, y: Taylor, rx: f64, ry: f64| {
-            let shift = 0.5 * (x.s * y.s) * h2;
+            let shift = 0.5 * ((x.s * h) * (y.s * h));
             let c = x.c * y.c + shift;
             let s = x.c * y.s + x.s * y.c;
             let rho = shift.abs()
@@ -1072,9 +1071,11 @@ impl Real for Taylor {
         let h = self.h;
         let c0 = self.c * self.c;
         let s = 2.0 * self.c * self.s;
-        let shift = 0.5 * (self.s * self.s) * (h * h);
+        // As in `mul`: the slope scaled by `h` before it is squared.
+        let sh = self.s * h;
+        let shift = 0.5 * (sh * sh);
         let c = c0 + shift;
-        let ra = self.c.abs() + self.s.abs() * h;
+        let ra = self.c.abs() + sh.abs();
         // The rounded terms' sum `2 c^2 + s^2 h^2 + 2 |c s| h` is at most `2 ra^2` (as in `mul`).
         let rho = shift + 2.0 * ra * self.rho + self.rho * self.rho + (2.0 * U4) * (ra * ra);
         Taylor::finish(c, s, rho, h)
@@ -1837,6 +1838,60 @@ mod tests {
         let err = exact.add(Dd::of(-m.c)).add(Dd::of(-m.s).mul(Dd::of(t)));
         let err = err.value().abs();
         assert!(err <= m.rho, "underflow: {err:e} > {:e}", m.rho);
+    }
+
+    /// The products' bounds hold for domains from `1e-300` to `1e15` wide (an independent
+    /// review found `(a1 b1) h^2` losing the `t^2` term below `h = 1e-154`, by up to `1e15`
+    /// times the bound, and overshooting it above `1e10`): models with slopes of any size
+    /// against `h` (`|s| h` from `1e-8` to `1e8`), centres 0 or not, against double-double at
+    /// points across `[-h, h]`, for `mul`, `sqr` and the dual product's derivative.
+    #[test]
+    fn taylor_products_hold_on_extreme_domains() {
+        use crate::test_rng::Dd;
+        let mut rng = Lcg(1154);
+        for case in 0..20000 {
+            let h = 10f64.powf(rng.range(-300.0, 15.0));
+            let model = |rng: &mut Lcg| Taylor {
+                c: if rng.next() < 0.5 {
+                    0.0
+                } else {
+                    rng.range(-1.0, 1.0) * 10f64.powf(rng.range(-8.0, 8.0))
+                },
+                s: rng.range(-1.0, 1.0) * 10f64.powf(rng.range(-8.0, 8.0)) / h,
+                rho: 0.0,
+                h,
+            };
+            let (a, b) = (model(&mut rng), model(&mut rng));
+            let (c, e) = (model(&mut rng), model(&mut rng));
+            let pair = Taylor::dual_product(Dual { v: a, d: c }, Dual { v: b, d: e });
+            let at = |p: Taylor, t: f64| Dd::of(p.c).add(Dd::of(p.s).mul(Dd::of(t)));
+            for i in 0..=8 {
+                let t = h * (i as f64 / 4.0 - 1.0);
+                let checks = [
+                    ("mul", a * b, at(a, t).mul(at(b, t))),
+                    ("sqr", a.sqr(), at(a, t).mul(at(a, t))),
+                    (
+                        "dual",
+                        pair.d,
+                        at(c, t).mul(at(b, t)).add(at(a, t).mul(at(e, t))),
+                    ),
+                ];
+                for (name, m, exact) in checks {
+                    if !(m.c.is_finite() && m.s.is_finite()) {
+                        // A slope past the largest float: the whole line.
+                        assert_eq!(m.enclosure(), Interval::ENTIRE, "{name} case {case}");
+                        continue;
+                    }
+                    let err = exact.add(Dd::of(-m.c)).add(Dd::of(-m.s).mul(Dd::of(t)));
+                    let err = err.value().abs();
+                    assert!(
+                        err <= m.rho,
+                        "{name} case {case}, h = {h:e}: error {err:e} > rho {:e}",
+                        m.rho
+                    );
+                }
+            }
+        }
     }
 
     /// [`Taylor`]'s dual product ([`Real::dual_product`]) is the separate products' and sum's
