@@ -938,7 +938,7 @@ impl Real for Taylor {
     /// it allows for).
     ///
     /// Not inlined, as the product is not: one call where the three products took three
-    /// (the elliptical ponytail's radial function multiplies about twenty dual pairs).
+    /// (the elliptical ponytail's radial function multiplies ten dual pairs a value).
     #[inline(never)]
     fn dual_product(a: Dual<Self>, b: Dual<Self>) -> Dual<Self> {
         // The models' domains are one `[-h, h]`, or a constant's (`h = 0`, `s = 0`): the
