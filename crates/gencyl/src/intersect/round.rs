@@ -2227,7 +2227,8 @@ mod tests {
                 continue;
             };
             let axis = cyl.axis;
-            let e_at = |u: f64| {
+            // The ray's point in the normal plane at `u`, less the axis point.
+            let offset = |o: DVec3, u: f64| {
                 let (a, a1) = (axis.point(u), axis.d1(u));
                 let w = a1.dot(a - o) / a1.dot(d);
                 o + w * d - a
@@ -2236,7 +2237,7 @@ mod tests {
             // it aimed at is `r (1 -+ 10^-k)`.
             let o = if i % 3 == 1 {
                 let s = rng.range(0.1, 0.9);
-                let e = e_at(s);
+                let e = offset(o, s);
                 let k = 10f64.powf(-rng.range(1.0, 9.0));
                 let depth = if rng.range(0.0, 1.0) < 0.5 {
                     1.0 - k
@@ -2248,11 +2249,7 @@ mod tests {
             } else {
                 o
             };
-            let e_at = |u: f64| {
-                let (a, a1) = (axis.point(u), axis.d1(u));
-                let w = a1.dot(a - o) / a1.dot(d);
-                o + w * d - a
-            };
+            let e_at = |u: f64| offset(o, u);
             // What `|e|`'s rounding may hide: a few units of the coordinates' size.
             let size = axis
                 .points
@@ -2304,8 +2301,8 @@ mod tests {
                     "case {i}: u = {u}, inside the tube, outside the window ({a}, {b})"
                 );
             }
-            // Tight: the inside set's ends by bisection from the closest approach, and the
-            // window's ends no farther from them than its margin and the ends' rounding.
+            // The inside set's ends by bisection from the closest approach: in the window, and
+            // no farther from its ends than its margin (both up to the ends' rounding).
             if !surely_inside(closest) {
                 continue;
             }
@@ -2332,6 +2329,10 @@ mod tests {
                 let rate = (e_at(u + h).length() - e_at(u - h).length()).abs() / (2.0 * h);
                 err / rate
             };
+            assert!(
+                a <= ua + moved(ua) && b >= ub - moved(ub),
+                "case {i}: window ({a}, {b}) does not hold the inside set ({ua}, {ub})"
+            );
             assert!(
                 a >= ua - slack - moved(ua) && b <= ub + slack + moved(ub),
                 "case {i}: window ({a}, {b}) against the inside set ({ua}, {ub})"
