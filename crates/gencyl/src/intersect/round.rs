@@ -952,7 +952,7 @@ impl Deferred {
         let (range, cell, [w_lo, w_hi]) = self.cells[i];
         let r = &self.ranges[range];
         if let Some(refine) = r.local
-            && let Some((u, w)) = solved_in_space(cyl, (refine, d), &r.k, r.u, &cell)
+            && let Some((u, w)) = solved_in_space(cyl, (refine.o, d), &r.k, r.u, &cell)
             && (w_lo..=w_hi).contains(&w)
         {
             push(cyl, d, u, w, out);
@@ -1203,10 +1203,8 @@ pub(crate) fn tube_window<C: CrossSection, S: SweepRule>(
         [a, b] => [a, b],
         _ => return None,
     };
-    // The solve takes only the origin from it (no refinement follows).
-    let refine = Refine { o, reach: 0.0 };
     let s_of = |cell: &RootCell| {
-        let (u, _) = solved_in_space(cyl, (refine, d), &k, (u0, u1), cell)?;
+        let (u, _) = solved_in_space(cyl, (o, d), &k, (u0, u1), cell)?;
         Some((u - u0) / (u1 - u0))
     };
     let (sa, sb) = (s_of(first)?, s_of(second)?);
@@ -1263,14 +1261,14 @@ fn space_step(
     (du, dw, e)
 }
 
-/// The crossing of a whole tube's root cell ([`whole_tube`]) found by Newton's method in space
-/// and certified by the cell's branch function: where it is, as `(u, w)`; `None` where Newton's
-/// method does not settle or the certificate fails (then the cell is polished on `H`, as
-/// others are). The start is the cell's `u` (the straight tube's crossing, [`tube_cells`]) with
+/// The crossing of a whole tube's root cell ([`whole_tube`], [`tube_window`]) for the local
+/// ray `o + w d`, found by Newton's method in space and certified by the cell's branch
+/// function: where it is, as `(u, w)`; `None` where Newton's method does not settle or the
+/// certificate fails (then the cell is polished on `H`, as others are). The start is the cell's `u` (the straight tube's crossing, [`tube_cells`]) with
 /// `w` on the sphere about `a(u)` ([`space_crossing_from`]).
 fn solved_in_space<C: CrossSection, S: SweepRule>(
     cyl: &GeneralizedCylinder<C, S>,
-    (refine, d): (Refine, DVec3),
+    (o, d): (DVec3, DVec3),
     k: &Polys,
     (u0, u1): (f64, f64),
     cell: &RootCell,
@@ -1281,7 +1279,7 @@ fn solved_in_space<C: CrossSection, S: SweepRule>(
         cell.s0 + (cell.s1 - cell.s0) * (cell.fa / (cell.fa - cell.fb))
     };
     let u = u0 + (u1 - u0) * s;
-    space_crossing_from(cyl, (refine.o, d), k, (u0, u1), cell, (u, None))
+    space_crossing_from(cyl, (o, d), k, (u0, u1), cell, (u, None))
 }
 
 /// Most Newton steps [`space_crossing_from`] takes.
@@ -1350,7 +1348,8 @@ fn space_crossing_from<C: CrossSection, S: SweepRule>(
         }
     }
     // `e` as of the last step's start, a rounding's breadth from the point found (the whole
-    // tube's crossings are not grazing: [`WHOLE_MIN_COS`]).
+    // tube's crossings are not grazing: [`WHOLE_MIN_COS`]; for [`tube_window`], which has no
+    // such gate, the bracket below alone places the branch's root, all the window needs).
     if !settled || !(e.dot(d) * cell.sign > 0.0) {
         return None;
     }
@@ -2372,7 +2371,7 @@ mod tests {
                 let k = &whole.ranges[j].k;
                 let refine = whole.ranges[j].local.expect("a whole tube's range");
                 cells += 1;
-                let Some((u, w)) = solved_in_space(&cyl, (refine, d), k, range, &cell) else {
+                let Some((u, w)) = solved_in_space(&cyl, (refine.o, d), k, range, &cell) else {
                     continue;
                 };
                 solved += 1;
