@@ -412,10 +412,13 @@ impl Bvh {
         if self.root.is_none() {
             return 0;
         }
-        if tmin.is_nan() || tmax.is_nan() || tmin > tmax || !ray.origin.is_finite() {
+        if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
             return 0;
         }
-        if !ray.dir.is_finite() || ray.dir == DVec3::ZERO {
+        // `0 x` is a zero for a finite `x` and NaN for an infinite or NaN one: the sum is zero
+        // exactly where the origin and the direction are finite (one vector test, not six).
+        let finite = ray.origin * 0.0 + ray.dir * 0.0 == DVec3::ZERO;
+        if !finite || ray.dir == DVec3::ZERO {
             return 0;
         }
         let slab = Slabs::new(ray, self.center, tmin);
@@ -683,23 +686,30 @@ impl Slabs {
 
     /// Whether the ray meets the box `b` (in world coordinates) within `[tmin, tmax]`.
     fn meets(&self, b: &Aabb, ray: &Ray, tmax: f64) -> bool {
-        let (mut t0, mut t1) = (self.tmin, tmax);
         let (origin, min, max) = (ray.origin.to_array(), b.min.to_array(), b.max.to_array());
-        for k in 0..3 {
+        // Each axis narrows `[t0, t1]` to the ray's span in the box's slab. No NaN arises
+        // (finite box, origin and inverse): plain comparisons suffice.
+        let narrow = |(t0, t1): (f64, f64), k: usize| {
             let (o, lo, hi) = (origin[k], min[k], max[k]);
-            if self.flat[k] {
-                if o < lo || o > hi {
+            let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
+            let (a, b) = ((near - o) * self.inv[k], (far - o) * self.inv[k]);
+            (if a > t0 { a } else { t0 }, if b < t1 { b } else { t1 })
+        };
+        let mut t = (self.tmin, tmax);
+        if self.flat == [false; 3] {
+            // Nearly every ray: three axes without a branch.
+            t = narrow(narrow(narrow(t, 0), 1), 2);
+        } else {
+            for k in 0..3 {
+                if !self.flat[k] {
+                    t = narrow(t, k);
+                } else if origin[k] < min[k] || origin[k] > max[k] {
+                    // A flat axis: the ray stays in its slab or misses the box.
                     return false;
                 }
-                continue;
             }
-            let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
-            // No NaN arises (finite box, origin and inverse): plain comparisons suffice.
-            let (a, b) = ((near - o) * self.inv[k], (far - o) * self.inv[k]);
-            t0 = if a > t0 { a } else { t0 };
-            t1 = if b < t1 { b } else { t1 };
         }
-        t0 <= t1
+        t.0 <= t.1
     }
 }
 
@@ -1124,6 +1134,134 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The root box's test ([`Slabs::meets`]) decides as the slab test's definition, written
+    /// out axis by axis: a flat axis (`d_k = 0`, either sign of zero) holds the ray when its
+    /// origin lies in the slab, any other narrows `[tmin, tmax]` to `[(near - o_k) / d_k,
+    /// (far - o_k) / d_k]` (by the inverse direction, as the walk's `f64` test). On rays aimed
+    /// at a box's faces, edges and corners and rays that pass them closely, with directions
+    /// along axes, in a plane, with zeros of both signs, subnormal or huge components (whose
+    /// inverses overflow), boxes that are points or flat, and ranges that start or end at the
+    /// box.
+    #[test]
+    fn the_root_test_is_the_slab_test() {
+        let definition = |b: &Aabb, ray: &Ray, (tmin, tmax): (f64, f64)| {
+            let (mut t0, mut t1) = (tmin, tmax);
+            for k in 0..3 {
+                let (o, d, lo, hi) = (ray.origin[k], ray.dir[k], b.min[k], b.max[k]);
+                if d == 0.0 {
+                    if o < lo || o > hi {
+                        return false;
+                    }
+                    continue;
+                }
+                let inv = 1.0 / d;
+                let (a, c) = ((lo - o) * inv, (hi - o) * inv);
+                let (near, far) = if d < 0.0 { (c, a) } else { (a, c) };
+                // NaN (0 times an infinite inverse) narrows nothing.
+                if near > t0 {
+                    t0 = near;
+                }
+                if far < t1 {
+                    t1 = far;
+                }
+            }
+            t0 <= t1
+        };
+        let mut rng = Rng::from_seed(39);
+        let (mut met, mut missed) = (0, 0);
+        for i in 0..200_000 {
+            let size = 10f64.powi((rng.next_u64() % 9) as i32 - 4);
+            let c = DVec3::splat([0.0, 1e4, -3e7][i % 3]) + rng.in_box(DVec3::ZERO, DVec3::ONE);
+            let mut h = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * size;
+            match rng.next_u64() % 6 {
+                0 => h = DVec3::ZERO,
+                1 => h.z = 0.0,
+                _ => {}
+            }
+            let b = Aabb {
+                min: c - h,
+                max: c + h,
+            };
+            // A point of the box (a corner, an edge, a face or inside), or one just beside it.
+            let pick = |rng: &mut Rng, k: usize| match rng.next_u64() % 4 {
+                0 => b.min[k],
+                1 => b.max[k],
+                2 => rng.range(b.min[k], b.max[k]),
+                _ => b.max[k] + size * 10f64.powi(-((rng.next_u64() % 15) as i32)),
+            };
+            let p = DVec3::new(pick(&mut rng, 0), pick(&mut rng, 1), pick(&mut rng, 2));
+            let mut d = rng.unit_vector();
+            match rng.next_u64() % 8 {
+                0 => d = [DVec3::X, DVec3::NEG_Y, DVec3::Z][i % 3],
+                1 => d.x = 0.0,
+                2 => d.y = -0.0,
+                3 => d.z = 1e-310,
+                4 => d.x = -1e-300,
+                _ => {}
+            }
+            let d = d * [1.0, 1e-30, 1e30][i % 3];
+            let back = rng.range(0.0, 10.0 * size);
+            let ray = Ray::new(p - back * d, d);
+            let tmin = [0.0, back, -1.0, back * (1.0 + 1e-15)][(i / 3) % 4];
+            let tmax = [f64::INFINITY, back, 2.0 * back + 1.0, back * (1.0 - 1e-15)][(i / 12) % 4];
+            if tmin > tmax {
+                continue;
+            }
+            let slab = Slabs::new(&ray, DVec3::ZERO, tmin);
+            let want = definition(&b, &ray, (tmin.max(-f64::MAX), tmax));
+            assert_eq!(
+                slab.meets(&b, &ray, tmax),
+                want,
+                "case {i}: {ray:?} {b:?} {tmin} {tmax}"
+            );
+            if want {
+                met += 1;
+            } else {
+                missed += 1;
+            }
+        }
+        assert!(
+            met > 20_000 && missed > 20_000,
+            "both answers: {met} {missed}"
+        );
+    }
+
+    /// A ray with an infinite or NaN coordinate in its origin or direction, or a zero
+    /// direction, meets nothing (the walk is not entered), even aimed at a box it would meet.
+    #[test]
+    fn rays_with_non_finite_parts_meet_nothing() {
+        let boxes = scattered_boxes(&mut Rng::from_seed(3), 200, 0.5);
+        let bvh = Bvh::build(&boxes);
+        let target = 0.5 * (boxes[0].min + boxes[0].max);
+        let origin = DVec3::new(-5.0, -5.0, -5.0);
+        let cast = |ray: Ray| {
+            let mut visits = 0;
+            bvh.traverse(&ray, 0.0, f64::INFINITY, |_, t| {
+                visits += 1;
+                t
+            });
+            visits
+        };
+        assert!(
+            cast(Ray::new(origin, target - origin)) > 0,
+            "the finite ray meets its box"
+        );
+        let mut visits = 0;
+        for bad in [f64::INFINITY, f64::NEG_INFINITY, f64::NAN] {
+            for k in 0..3 {
+                let mut o = origin;
+                o[k] = bad;
+                visits += cast(Ray::new(o, target - origin));
+                let mut d = target - origin;
+                d[k] = bad;
+                visits += cast(Ray::new(origin, d));
+            }
+        }
+        visits += cast(Ray::new(origin, DVec3::ZERO));
+        visits += cast(Ray::new(origin, DVec3::new(0.0, -0.0, 0.0)));
+        assert_eq!(visits, 0, "rays with a non-finite part or no direction");
     }
 
     /// `n` boxes with centres uniform in `[0, 10]^3` and half-sizes uniform in `[0, half]` on
