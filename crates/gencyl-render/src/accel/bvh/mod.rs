@@ -687,8 +687,9 @@ impl Slabs {
     /// Whether the ray meets the box `b` (in world coordinates) within `[tmin, tmax]`.
     fn meets(&self, b: &Aabb, ray: &Ray, tmax: f64) -> bool {
         let (origin, min, max) = (ray.origin.to_array(), b.min.to_array(), b.max.to_array());
-        // Each axis narrows `[t0, t1]` to the ray's span in the box's slab. No NaN arises
-        // (finite box, origin and inverse): plain comparisons suffice.
+        // Each axis narrows `[t0, t1]` to the ray's span in the box's slab. The box and the
+        // origin are finite; a NaN (zero times an inverse that overflowed, from a subnormal
+        // direction) fails its comparison and narrows nothing.
         let narrow = |(t0, t1): (f64, f64), k: usize| {
             let (o, lo, hi) = (origin[k], min[k], max[k]);
             let (near, far) = if self.neg[k] { (hi, lo) } else { (lo, hi) };
