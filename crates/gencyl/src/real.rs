@@ -886,19 +886,33 @@ impl Mul for Taylor {
     #[inline(never)]
     fn mul(self, o: Self) -> Self {
         let h = fmax(self.h, o.h);
-        let c0 = self.c * o.c;
-        let (s1, s2) = (self.c * o.s, self.s * o.c);
-        let (ah, bh) = (self.s * h, o.s * h);
-        let shift = 0.5 * (ah * bh);
-        let c = c0 + shift;
-        let ra = self.c.abs() + ah.abs();
-        let rb = o.c.abs() + bh.abs();
+        let (c, s, rho) = Taylor::product_terms(self, o, h, (self.magnitude(h), o.magnitude(h)));
+        Taylor::finish(c, s, rho, h)
+    }
+}
+
+impl Taylor {
+    /// `|c| + |s h|`: a bound of the model's line on `[-h, h]`.
+    #[inline(always)]
+    fn magnitude(self, h: f64) -> f64 {
+        self.c.abs() + (self.s * h).abs()
+    }
+
+    /// The product's centre, slope and remainder before [`Taylor::finish`], on the common
+    /// domain `[-h, h]`, from the factors' [`Taylor::magnitude`]s `(rx, ry)` (see `Mul` for the
+    /// terms and their rounding), shared by `Mul` and the dual product (which computes each
+    /// factor's magnitude once for its three products).
+    #[inline(always)]
+    fn product_terms(x: Taylor, y: Taylor, h: f64, (rx, ry): (f64, f64)) -> (f64, f64, f64) {
+        let shift = 0.5 * ((x.s * h) * (y.s * h));
+        let c = x.c * y.c + shift;
+        let s = x.c * y.s + x.s * y.c;
         let rho = shift.abs()
-            + ra * o.rho
-            + rb * self.rho
-            + self.rho * o.rho
-            + (2.0 * U4) * ((ra + f64::MIN_POSITIVE) * (rb + f64::MIN_POSITIVE));
-        Taylor::finish(c, s1 + s2, rho, h)
+            + rx * y.rho
+            + ry * x.rho
+            + x.rho * y.rho
+            + (2.0 * U4) * ((rx + f64::MIN_POSITIVE) * (ry + f64::MIN_POSITIVE));
+        (c, s, rho)
     }
 }
 impl Div for Taylor {
@@ -926,8 +940,9 @@ impl Real for Taylor {
     const ENCLOSURE: bool = true;
     const DIV_BY_RECIP: bool = true;
     /// The three products and the sum of [`Dual`]'s product in one pass, each term as
-    /// [`Taylor`]'s product and sum form it (the same centres and slopes to the bit; each
-    /// factor's magnitude `|c| + |s| h` computed once). The derivative's remainder is the two
+    /// [`Taylor`]'s product and sum form it (the same centres and slopes to the bit: each
+    /// product's terms are `Mul`'s, [`Taylor::product_terms`]; each factor's magnitude
+    /// computed once). The derivative's remainder is the two
     /// products' (see `Mul`) without the sum's rounding term or the two intermediate
     /// rounding-ups (`finish`). The products' rounding terms cover the sum's: its centre
     /// `(p0 + shift_p) + (q0 + shift_q)` and slope `(p1 + p2) + (q1 + q2)` round each product
@@ -944,23 +959,15 @@ impl Real for Taylor {
         // The models' domains are one `[-h, h]`, or a constant's (`h = 0`, `s = 0`): the
         // largest `h` is each product's.
         let h = fmax(fmax(a.v.h, a.d.h), fmax(b.v.h, b.d.h));
-        let mag = |x: Taylor| x.c.abs() + x.s.abs() * h;
-        let (av, ad, bv, bd) = (mag(a.v), mag(a.d), mag(b.v), mag(b.d));
-        // One product's centre, slope and remainder (`Mul`'s terms).
-        let product = |x: Taylor, y: Taylor, rx: f64, ry: f64| {
-            let shift = 0.5 * ((x.s * h) * (y.s * h));
-            let c = x.c * y.c + shift;
-            let s = x.c * y.s + x.s * y.c;
-            let rho = shift.abs()
-                + rx * y.rho
-                + ry * x.rho
-                + x.rho * y.rho
-                + (2.0 * U4) * ((rx + f64::MIN_POSITIVE) * (ry + f64::MIN_POSITIVE));
-            (c, s, rho)
-        };
-        let (vc, vs, vrho) = product(a.v, b.v, av, bv);
-        let (pc, ps, prho) = product(a.d, b.v, ad, bv);
-        let (qc, qs, qrho) = product(a.v, b.d, av, bd);
+        let (av, ad, bv, bd) = (
+            a.v.magnitude(h),
+            a.d.magnitude(h),
+            b.v.magnitude(h),
+            b.d.magnitude(h),
+        );
+        let (vc, vs, vrho) = Taylor::product_terms(a.v, b.v, h, (av, bv));
+        let (pc, ps, prho) = Taylor::product_terms(a.d, b.v, h, (ad, bv));
+        let (qc, qs, qrho) = Taylor::product_terms(a.v, b.d, h, (av, bd));
         Dual {
             v: Taylor::finish(vc, vs, vrho, fmax(a.v.h, b.v.h)),
             // The two `1e-300`s of the intermediate `finish`es kept: an independent review
