@@ -962,11 +962,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// `(a(u) - p, a'(u), a''(u))`.
     ///
     /// For enclosure types they are the Taylor polynomials about `m = u.value()` in
-    /// `t = u - m` (exact: the axis is a cubic), with coefficients enclosed at the point `m`
+    /// `u - m` (exact: the axis is a cubic), with coefficients enclosed at the point `m`
     /// ([`Real::cubic_jet`]; by [`CubicBezier::jet_enclosure`]'s rounding bound, or interval
     /// arithmetic outside its range; the hodographs' control points are taken as exact, as
     /// everywhere). All dependence on `u` then goes through the one small
-    /// quantity `t in [-h, h]`, and the enclosures are about as wide as the quantities vary
+    /// quantity `u - m` (a [`crate::real::Taylor`] model's `h t`), and the enclosures are about as wide as the quantities vary
     /// over the interval. The Bernstein form evaluated over an interval counts the variation
     /// of each basis function separately, which is several times wider, and every later
     /// operation inherits the excess.

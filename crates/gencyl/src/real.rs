@@ -690,12 +690,17 @@ impl Real for Interval {
 }
 
 /// A first-order Taylor model in one variable: the set of functions
-/// `c + s t + r(t)` with `|r(t)| <= rho` for `t in [-h, h]`.
+/// `c + s t + r(t)` with `|r(t)| <= rho` for `t in [-1, 1]`.
 ///
-/// Evaluating a function with the variable `u = m + t` as a `Taylor` ([`Taylor::var`]) gives an
+/// Evaluating a function with the variable `u = m + h t` as a `Taylor` ([`Taylor::var`]: `c = m`,
+/// `s = h`, the domain's centre and half-width) gives an
 /// enclosure of the function over `[m - h, m + h]` that keeps its linear dependence on `t`
 /// exactly and bounds only the rest: products of two models (`t^2` terms), the curvature of
 /// `sqrt`, `1/x`, `sin` and `cos` between the centre and the ends, and every rounding error.
+/// The slope `s` is the function's derivative in `u` times `h` (so a constant has `s = 0`, and
+/// every model of one evaluation shares the domain `[-1, 1]` without carrying `h`: fewer
+/// operations and smaller models than with `t in [-h, h]`; [`Taylor::slope_per_unit`] gives the
+/// derivative in `u`).
 /// The remainder shrinks like `h^2`, so the enclosure of a smooth function is its true range to
 /// second order, where interval arithmetic overestimates to first order by the dependency
 /// problem. In a [`Dual`] it encloses the derivative the same way, which is what the root
@@ -716,12 +721,10 @@ impl Real for Interval {
 pub struct Taylor {
     /// The value at `t = 0`.
     pub c: f64,
-    /// The slope in `t`.
+    /// The slope in `t` (in `u = m + h t`: the derivative in `u` times `h`).
     pub s: f64,
     /// The remainder bound.
     pub rho: f64,
-    /// The half-width of the domain of `t` (0 for constants).
-    pub h: f64,
 }
 
 /// Absolute error bound of the C library's `sin` and `cos` (a few ulps of 1; [`Interval`]'s
@@ -743,15 +746,27 @@ impl Taylor {
         c: 0.0,
         s: 0.0,
         rho: f64::INFINITY,
-        h: 0.0,
     };
 
-    /// The variable `u` over `[lo, hi]`: `m + t` with `m` the midpoint and `h` at least
-    /// `hi - m` and `m - lo`.
+    /// The variable `u` over `[lo, hi]`: `m + h t` with `m` the midpoint and `h` at least
+    /// `hi - m` and `m - lo` (`c = m`, `s = h`, exact: the set `[m - h, m + h]` holds
+    /// `[lo, hi]`).
     pub fn var(lo: f64, hi: f64) -> Self {
         let m = 0.5 * (lo + hi);
         let h = up((hi - m).max(m - lo));
-        Taylor::finish(m, 1.0, 0.0, h)
+        Taylor::finish(m, h, 0.0)
+    }
+
+    /// The model's slope in `u` for the domain `[m - h, m + h]` of [`Taylor::var`] (`h` its
+    /// `s`): `(s / h, rho)`, the slope rounded and the remainder grown by `2^-52 |s|` for that
+    /// rounding (at `|t| <= 1` the line moves by at most `|s|` times the quotient's relative
+    /// error), so that `c + (s / h) (u - m) + [-rho, rho]` holds the model's values at `u`.
+    /// `h = 0` (a point) gives a slope of 0 where `s = 0`.
+    pub fn slope_per_unit(self, h: f64) -> (f64, f64) {
+        if h == 0.0 {
+            return (0.0, self.rho + self.s.abs());
+        }
+        (self.s / h, self.rho + f64::EPSILON * self.s.abs())
     }
 
     /// Rounds the remainder up (see the type's docs).
@@ -760,20 +775,19 @@ impl Taylor {
     /// arithmetic (every comparison with NaN fails, so `sqrt` and `1/x` give up), and
     /// [`Taylor::enclosure`] turns them into the whole line.
     #[inline(always)]
-    fn finish(c: f64, s: f64, rho: f64, h: f64) -> Self {
+    fn finish(c: f64, s: f64, rho: f64) -> Self {
         const GROW: f64 = 1.0 + 1.0 / (1u64 << 44) as f64;
         Taylor {
             c,
             s,
             rho: rho * GROW + 1e-300,
-            h,
         }
     }
 
     /// A bound on `|s t + r|`, the distance of the model's values from `c`, rounded up.
     #[inline(always)]
     fn spread(self) -> f64 {
-        (self.s.abs() * self.h + self.rho) * (1.0 + 1e-15)
+        (self.s.abs() + self.rho) * (1.0 + 1e-15)
     }
 
     /// An interval holding every value of the model.
@@ -801,15 +815,12 @@ impl Taylor {
         let rho = (f1.abs() + err1) * self.rho
             + 0.5 * f2 * w * w
             + err0
-            + err1 * self.s.abs() * self.h
-            + U4 * (f0.abs() + s.abs() * self.h);
+            + err1 * self.s.abs()
+            + U4 * (f0.abs() + s.abs());
         if rho > 0.5 * range.width() {
-            return Taylor {
-                h: self.h,
-                ..Taylor::lift(range)
-            };
+            return Taylor::lift(range);
         }
-        Taylor::finish(f0, s, rho, self.h)
+        Taylor::finish(f0, s, rho)
     }
 
     /// `1 / self`.
@@ -817,10 +828,7 @@ impl Taylor {
     fn reciprocal(self) -> Self {
         let lo = down(self.c.abs() - self.spread());
         if !(lo > 0.0) {
-            return Taylor {
-                h: self.h,
-                ..Self::ENTIRE
-            };
+            return Self::ENTIRE;
         }
         let r = 1.0 / self.c;
         let hi = up(self.c.abs() + self.spread());
@@ -845,37 +853,36 @@ impl Add for Taylor {
     type Output = Self;
     #[inline(always)]
     fn add(self, o: Self) -> Self {
-        let h = fmax(self.h, o.h);
         let (c, s) = (self.c + o.c, self.s + o.s);
-        Taylor::finish(c, s, self.rho + o.rho + U4 * (c.abs() + s.abs() * h), h)
+        Taylor::finish(c, s, self.rho + o.rho + U4 * (c.abs() + s.abs()))
     }
 }
 impl Sub for Taylor {
     type Output = Self;
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
-        let h = fmax(self.h, o.h);
         let (c, s) = (self.c - o.c, self.s - o.s);
-        Taylor::finish(c, s, self.rho + o.rho + U4 * (c.abs() + s.abs() * h), h)
+        Taylor::finish(c, s, self.rho + o.rho + U4 * (c.abs() + s.abs()))
     }
 }
 impl Mul for Taylor {
     type Output = Self;
     /// `(a0 + a1 t + ra)(b0 + b1 t + rb) = a0 b0 + (a0 b1 + a1 b0) t + a1 b1 t^2 + ...`, with
-    /// `a1 b1 t^2 in a1 b1 [0, h^2]` as its midpoint plus a remainder.
+    /// `a1 b1 t^2 in a1 b1 [0, 1]` as its midpoint `shift = a1 b1 / 2` plus a remainder.
     ///
-    /// Rounding: the rounded terms `c0 = a0 b0`, `shift`, `c = c0 + shift` and `(s1 + s2) h`
-    /// add up to at most `2 |a0| |b0| + |a1 b1| h^2 + (|a0 b1| + |a1 b0|) h` (to a factor
-    /// `1 + 4u`), which is at most `2 (|a0| + |a1| h)(|b0| + |b1| h)`: `4u` times that bounds
-    /// their errors with two products, where summing the terms took ten operations. Where
-    /// `|a1| h` or `|b1| h` underflows it may lose up to `2^-1075`, which a huge other factor
+    /// Rounding: the rounded terms `c0 = a0 b0`, `shift`, `c = c0 + shift` and `s1 + s2`
+    /// add up to at most `2 |a0| |b0| + |a1 b1| + |a0 b1| + |a1 b0|` (to a factor
+    /// `1 + 4u`), which is at most `2 (|a0| + |a1|)(|b0| + |b1|)`: `4u` times that bounds
+    /// their errors with two products, where summing the terms took ten operations. Where a
+    /// product underflows it may lose up to `2^-1075`, which a huge other factor
     /// would scale past what the `1e-300` of each operation covers: each factor is taken plus
     /// the smallest normal `2^-1022` (absorbed, where a factor is larger than `2^-969`, by the
     /// bound's slack).
     ///
-    /// `shift` is `(a1 h)(b1 h) / 2`, each slope scaled by `h` first: as `(a1 b1) h^2` it lost
-    /// the `t^2` term where `h * h` underflowed (`h` below `1e-154`), and scaled an underflowed
-    /// `a1 b1` past the bound where `h` was huge (an independent review).
+    /// The slopes carry the domain's half-width `h` (`t` in `[-1, 1]`, [`Taylor::var`]), so
+    /// `shift` is the product of the scaled slopes: the form an independent review asked for
+    /// when the domain was `[-h, h]` (`(a1 b1) h^2` lost the `t^2` term where `h * h`
+    /// underflowed, and scaled an underflowed `a1 b1` past the bound where `h` was huge).
     ///
     /// Not inlined, unlike the other operations: the enclosures of the radial function and of
     /// the General method's `phi` each inlined well over a hundred products, and their code
@@ -885,26 +892,25 @@ impl Mul for Taylor {
     /// built on it as well was slower).
     #[inline(never)]
     fn mul(self, o: Self) -> Self {
-        let h = fmax(self.h, o.h);
-        let (c, s, rho) = Taylor::product_terms(self, o, h, (self.magnitude(h), o.magnitude(h)));
-        Taylor::finish(c, s, rho, h)
+        let (c, s, rho) = Taylor::product_terms(self, o, (self.magnitude(), o.magnitude()));
+        Taylor::finish(c, s, rho)
     }
 }
 
 impl Taylor {
-    /// `|c| + |s h|`: a bound of the model's line on `[-h, h]`.
+    /// `|c| + |s|`: a bound of the model's line on `[-1, 1]`.
     #[inline(always)]
-    fn magnitude(self, h: f64) -> f64 {
-        self.c.abs() + (self.s * h).abs()
+    fn magnitude(self) -> f64 {
+        self.c.abs() + self.s.abs()
     }
 
-    /// The product's centre, slope and remainder before [`Taylor::finish`], on the common
-    /// domain `[-h, h]`, from the factors' [`Taylor::magnitude`]s `(rx, ry)` (see `Mul` for the
-    /// terms and their rounding), shared by `Mul` and the dual product (which computes each
-    /// factor's magnitude once for its three products).
+    /// The product's centre, slope and remainder before [`Taylor::finish`], from the factors'
+    /// [`Taylor::magnitude`]s `(rx, ry)` (see `Mul` for the terms and their rounding), shared
+    /// by `Mul` and the dual product (which computes each factor's magnitude once for its
+    /// three products).
     #[inline(always)]
-    fn product_terms(x: Taylor, y: Taylor, h: f64, (rx, ry): (f64, f64)) -> (f64, f64, f64) {
-        let shift = 0.5 * ((x.s * h) * (y.s * h));
+    fn product_terms(x: Taylor, y: Taylor, (rx, ry): (f64, f64)) -> (f64, f64, f64) {
+        let shift = 0.5 * (x.s * y.s);
         let c = x.c * y.c + shift;
         let s = x.c * y.s + x.s * y.c;
         let rho = shift.abs()
@@ -947,7 +953,7 @@ impl Real for Taylor {
     /// rounding-ups (`finish`). The products' rounding terms cover the sum's: its centre
     /// `(p0 + shift_p) + (q0 + shift_q)` and slope `(p1 + p2) + (q1 + q2)` round each product
     /// term at most five times (`shift`'s own three, two sums), so by at most `5u` times the
-    /// terms' magnitudes (the slope's times `h`), at most `5u (ra_d rb_v + ra_v rb_d)`; the
+    /// terms' magnitudes, at most `5u (ra_d rb_v + ra_v rb_d)`; the
     /// products' rounding terms are `8u` times that. One `finish` at the end covers the
     /// rounding of the remainder's own terms (far fewer than the `2^-44 / u = 512` roundings
     /// it allows for).
@@ -956,23 +962,20 @@ impl Real for Taylor {
     /// (the elliptical ponytail's radial function multiplies ten dual pairs a value).
     #[inline(never)]
     fn dual_product(a: Dual<Self>, b: Dual<Self>) -> Dual<Self> {
-        // The models' domains are one `[-h, h]`, or a constant's (`h = 0`, `s = 0`): the
-        // largest `h` is each product's.
-        let h = fmax(fmax(a.v.h, a.d.h), fmax(b.v.h, b.d.h));
         let (av, ad, bv, bd) = (
-            a.v.magnitude(h),
-            a.d.magnitude(h),
-            b.v.magnitude(h),
-            b.d.magnitude(h),
+            a.v.magnitude(),
+            a.d.magnitude(),
+            b.v.magnitude(),
+            b.d.magnitude(),
         );
-        let (vc, vs, vrho) = Taylor::product_terms(a.v, b.v, h, (av, bv));
-        let (pc, ps, prho) = Taylor::product_terms(a.d, b.v, h, (ad, bv));
-        let (qc, qs, qrho) = Taylor::product_terms(a.v, b.d, h, (av, bd));
+        let (vc, vs, vrho) = Taylor::product_terms(a.v, b.v, (av, bv));
+        let (pc, ps, prho) = Taylor::product_terms(a.d, b.v, (ad, bv));
+        let (qc, qs, qrho) = Taylor::product_terms(a.v, b.d, (av, bd));
         Dual {
-            v: Taylor::finish(vc, vs, vrho, fmax(a.v.h, b.v.h)),
+            v: Taylor::finish(vc, vs, vrho),
             // The two `1e-300`s of the intermediate `finish`es kept: an independent review
             // found errors of 2.7e-300 against a single one, at `h = 1e-300`.
-            d: Taylor::finish(pc + qc, ps + qs, prho + qrho + 2e-300, h),
+            d: Taylor::finish(pc + qc, ps + qs, prho + qrho + 2e-300),
         }
     }
     #[inline(always)]
@@ -989,16 +992,15 @@ impl Real for Taylor {
             c: x,
             s: 0.0,
             rho: 0.0,
-            h: 0.0,
         }
     }
     #[inline(always)]
     fn lift(x: Interval) -> Self {
         let c = x.value();
-        Taylor::finish(c, 0.0, fmax(x.hi - c, c - x.lo), 0.0)
+        Taylor::finish(c, 0.0, fmax(x.hi - c, c - x.lo))
     }
     /// At the model's centre (`m = c`, the usual case) directly: `p(c + d) = k0 + k1 d +
-    /// p''(xi) d^2 / 2` with `|p''| <= 2|k2| + 6|k3| |d|` and `|d| <= |s| h + rho`; elsewhere by
+    /// p''(xi) d^2 / 2` with `|p''| <= 2|k2| + 6|k3| |d|` and `|d| <= |s| + rho`; elsewhere by
     /// Horner's rule.
     #[inline(always)]
     fn cubic_at(self, m: f64, k: [Interval; 4]) -> Self {
@@ -1022,10 +1024,7 @@ impl Real for Taylor {
     fn sqrt(self) -> Self {
         let lo = down(self.c - self.spread());
         if !(lo > 0.0) {
-            return Taylor {
-                h: self.h,
-                ..Self::ENTIRE
-            };
+            return Self::ENTIRE;
         }
         let r = self.c.sqrt();
         let range = Interval {
@@ -1043,18 +1042,12 @@ impl Real for Taylor {
         }
         let hi = up(self.c + self.spread()).max(0.0);
         if !hi.is_finite() {
-            return Taylor {
-                h: self.h,
-                ..Self::ENTIRE
-            };
+            return Self::ENTIRE;
         }
-        Taylor {
-            h: self.h,
-            ..Taylor::lift(Interval {
-                lo: 0.0,
-                hi: up(hi.sqrt()),
-            })
-        }
+        Taylor::lift(Interval {
+            lo: 0.0,
+            hi: up(hi.sqrt()),
+        })
     }
     #[inline(always)]
     fn sin(self) -> Self {
@@ -1075,45 +1068,29 @@ impl Real for Taylor {
     }
     #[inline(always)]
     fn sqr(self) -> Self {
-        let h = self.h;
         let c0 = self.c * self.c;
         let s = 2.0 * self.c * self.s;
-        // As in `mul`: the slope scaled by `h` before it is squared.
-        let sh = self.s * h;
-        let shift = 0.5 * (sh * sh);
+        let shift = 0.5 * (self.s * self.s);
         let c = c0 + shift;
-        let ra = self.c.abs() + sh.abs();
-        // The rounded terms' sum `2 c^2 + s^2 h^2 + 2 |c s| h` is at most `2 ra^2` (as in `mul`).
+        let ra = self.magnitude();
+        // The rounded terms' sum `2 c^2 + s^2 + 2 |c s|` is at most `2 ra^2` (as in `mul`).
         let rho = shift + 2.0 * ra * self.rho + self.rho * self.rho + (2.0 * U4) * (ra * ra);
-        Taylor::finish(c, s, rho, h)
+        Taylor::finish(c, s, rho)
     }
     #[inline(always)]
     fn scale(self, k: f64) -> Self {
         let (c, s) = (self.c * k, self.s * k);
-        Taylor::finish(
-            c,
-            s,
-            self.rho * k.abs() + U4 * (c.abs() + s.abs() * self.h),
-            self.h,
-        )
+        Taylor::finish(c, s, self.rho * k.abs() + U4 * (c.abs() + s.abs()))
     }
     /// `(c + s t + r) / k = c/k + (s/k) t + r/k`: the two quotients' rounding goes into the
     /// remainder, as for [`Real::scale`]. A divisor of 0 or NaN makes the whole line.
     #[inline(always)]
     fn div_cst(self, k: f64) -> Self {
         if !(k != 0.0) {
-            return Taylor {
-                h: self.h,
-                ..Self::ENTIRE
-            };
+            return Self::ENTIRE;
         }
         let (c, s) = (self.c / k, self.s / k);
-        Taylor::finish(
-            c,
-            s,
-            self.rho / k.abs() + U4 * (c.abs() + s.abs() * self.h),
-            self.h,
-        )
+        Taylor::finish(c, s, self.rho / k.abs() + U4 * (c.abs() + s.abs()))
     }
 }
 
@@ -1482,19 +1459,19 @@ mod tests {
 
     use crate::test_rng::Lcg;
 
-    /// A random model on `[-h, h]` and a random member `(t, value)` of its set.
+    /// A random model of a variable's domain of half-width `h` (a slope in `u` times `h`: 0 for
+    /// a constant, `h = 0`) and a random member `(t, value)` of its set, `t` in `[-1, 1]`.
     fn random_model(rng: &mut Lcg, h: f64) -> (Taylor, f64, f64) {
         let m = Taylor {
             c: rng.range(-3.0, 3.0),
-            s: rng.range(-2.0, 2.0),
+            s: rng.range(-2.0, 2.0) * h,
             rho: if rng.next() < 0.3 {
                 0.0
             } else {
                 rng.range(0.0, 0.05)
             },
-            h,
         };
-        let t = rng.range(-h, h);
+        let t = rng.range(-1.0, 1.0);
         let r = rng.range(-m.rho, m.rho);
         (m, t, m.c + m.s * t + r)
     }
@@ -1502,7 +1479,7 @@ mod tests {
     /// Whether the model at `t` admits `x` (with a little slack for the rounding of `x` and of
     /// the check itself).
     fn admits(m: Taylor, t: f64, x: f64) -> bool {
-        let slack = 1e-14 * (x.abs() + m.c.abs() + m.s.abs() * m.h);
+        let slack = 1e-14 * (x.abs() + m.c.abs() + m.s.abs());
         (x - (m.c + m.s * t)).abs() <= m.rho + slack
     }
 
@@ -1565,6 +1542,42 @@ mod tests {
         }
     }
 
+    /// [`Taylor::slope_per_unit`] turns a model of a cell's variable `t` into one of `u`: a
+    /// cubic's model over cells `1e-9` to `10` wide, centred anywhere in `[-1e3, 1e3]`, holds
+    /// the cubic at points across the cell as `c + s (u - m) + [-rho, rho]` with the slope and
+    /// remainder it gives (no slack but the check's own rounding); a point's model (`h = 0`)
+    /// keeps its value. It fails where the slope is not divided by `h`.
+    #[test]
+    fn slopes_per_unit_hold_the_model() {
+        use crate::test_rng::Dd;
+        let mut rng = Lcg(4242);
+        for case in 0..4000 {
+            let k: [f64; 4] =
+                std::array::from_fn(|_| rng.range(-2.0, 2.0) * 10f64.powf(rng.range(0.0, 6.0)));
+            let lo = rng.range(-1e3, 1e3);
+            let hi = lo + 10f64.powf(rng.range(-9.0, 1.0));
+            let var = Taylor::var(lo, hi);
+            let (m, h) = (var.c, var.s);
+            // The cubic's exact coefficients about `m`.
+            let model = var.cubic_at(m, k.map(|x| Interval::new(x, x)));
+            let (s, rho) = model.slope_per_unit(h);
+            for i in 0..=16 {
+                let u = lo + (hi - lo) * i as f64 / 16.0;
+                let z = Dd::of(u).add(Dd::of(-m));
+                let exact = Dd::of(k[0])
+                    .add(z.mul(Dd::of(k[1]).add(z.mul(Dd::of(k[2]).add(z.mul(Dd::of(k[3])))))));
+                let line = Dd::of(model.c).add(Dd::of(s).mul(z));
+                let err = exact.add(line.mul(Dd::of(-1.0))).value().abs();
+                assert!(
+                    err <= rho * (1.0 + 1e-12),
+                    "case {case}: {err:e} > {rho:e} at {u} in [{lo}, {hi}]"
+                );
+            }
+        }
+        let point = Taylor::cst(2.0).scale(3.0);
+        assert_eq!(point.slope_per_unit(0.0), (0.0, point.rho));
+    }
+
     /// `cubic_jet` encloses a cubic and its first two derivatives over a cell, and in a [`Dual`]
     /// their derivatives too (chained through the variable's own derivative, 1 or not): for
     /// `Dual<Taylor>`, `Dual<Interval>` and `Taylor`, at points sampled across the cell and at
@@ -1615,9 +1628,11 @@ mod tests {
             }
             .cubic_jet(m, d);
             let plain = Taylor::var(lo, hi).cubic_jet(m, d);
+            // `x = m + h t`.
+            let h = Taylor::var(lo, hi).s;
             for i in 0..=20 {
                 let x = lo + (hi - lo) * i as f64 / 20.0;
-                let t = x - m;
+                let t = (x - m) / h;
                 for j in 0..3 {
                     let (value, slope) = (p(x, j), p(x, j + 1) * dx);
                     let slack = 1e-13 * (1.0 + value.abs() + slope.abs());
@@ -1672,7 +1687,7 @@ mod tests {
                 rng.range(-2.0, 2.0),
             );
             // Three models sharing `t`, and a member of each there.
-            let t = rng.range(-h, h);
+            let t = rng.range(-1.0, 1.0);
             let [(a, _, _), (b, _, _), (c, _, _)] = [0, 1, 2].map(|_| random_model(&mut rng, h));
             let member = |m: Taylor, f: f64| m.c + m.s * t + f * m.rho;
             let x = DVec3::new(member(a, 0.37), member(b, -0.8), member(c, 1.0));
@@ -1743,7 +1758,7 @@ mod tests {
             let ui = Dual::var(Interval::exact(lo, hi));
             let th = Dual::cst(th0) + ui.scale(k);
             let (ix, iy) = th.rotate_back(quad(a, ui), quad(b, ui));
-            let m = 0.5 * (lo + hi);
+            let Taylor { c: m, s: h, .. } = Taylor::var(lo, hi);
             for i in 0..=16 {
                 let w = lo + (hi - lo) * i as f64 / 16.0;
                 let p = Dual::var(w);
@@ -1757,7 +1772,7 @@ mod tests {
                     ("y'", ry.d, iy.d, py.d),
                 ] {
                     let slack = 1e-13 * (1.0 + want.abs());
-                    let t = w - m;
+                    let t = (w - m) / h;
                     assert!(
                         (want - (model.c + model.s * t)).abs() <= model.rho + slack,
                         "case {case} {name} at {w}: {want} not in {model:?}"
@@ -1772,7 +1787,7 @@ mod tests {
     }
 
     /// The products' tests' magnitude (`1e-8` to `1e8`) and domain half-width (every third
-    /// case a constant's, 0) for case `case`.
+    /// case a constant's, 0; a model's slope is one in `u` times it) for case `case`.
     fn product_case(rng: &mut Lcg, case: usize) -> (f64, f64) {
         let scale = 10f64.powf(rng.range(-8.0, 8.0));
         let h = if case.is_multiple_of(3) {
@@ -1784,7 +1799,7 @@ mod tests {
     }
 
     /// The rounding bounds of `mul` and `sqr` hold with no slack: for models without a
-    /// remainder, `(a0 + a1 t)(b0 + b1 t)` in double-double at points across `[-h, h]` (and
+    /// remainder, `(a0 + a1 t)(b0 + b1 t)` in double-double at points across `[-1, 1]` (and
     /// constants, `h = 0`, where the remainder is only rounding) lies within `rho` of the
     /// computed `c + s t`, itself taken in double-double.
     #[test]
@@ -1796,18 +1811,13 @@ mod tests {
             let (scale, h) = product_case(&mut rng, case);
             let model = |rng: &mut Lcg| Taylor {
                 c: rng.range(-1.0, 1.0) * scale,
-                s: if h == 0.0 {
-                    0.0
-                } else {
-                    rng.range(-1.0, 1.0) * scale
-                },
+                s: rng.range(-1.0, 1.0) * scale * h,
                 rho: 0.0,
-                h,
             };
             let (a, b) = (model(&mut rng), model(&mut rng));
             for (name, m, (x, y)) in [("mul", a * b, (a, b)), ("sqr", a.sqr(), (a, a))] {
                 for i in 0..=8 {
-                    let t = h * (i as f64 / 4.0 - 1.0);
+                    let t = i as f64 / 4.0 - 1.0;
                     let at = |p: Taylor| Dd::of(p.c).add(Dd::of(p.s).mul(Dd::of(t)));
                     let exact = at(x).mul(at(y));
                     let err = exact.add(Dd::of(-m.c)).add(Dd::of(-m.s).mul(Dd::of(t)));
@@ -1825,20 +1835,20 @@ mod tests {
         }
         // The bound is not vacuous: some error comes within a factor 20 of it.
         assert!(tight > 0.05, "largest error / rho = {tight}");
-        // A slope term that underflows against a huge other factor (found by review): the
-        // error of `s = a0 b1` times `t` is 1.2e-146, while `ra rb` is 0.
-        let (h, t) = (1e-160, 1e-160);
+        // A subnormal slope against a huge centre (a review's case, when the slope was in `u`
+        // and `t` in `[-h, h]` with `h = 1e-160`, was `|a1| h` underflowing to 0 in the
+        // magnitudes; the scaled slope is that product, here subnormal): the product's slope
+        // `a0 b1` is normal and rounded, and the bound holds it.
+        let t = 1.0;
         let a = Taylor {
             c: 1.2345678901234567e200,
             s: 0.0,
             rho: 0.0,
-            h,
         };
         let b = Taylor {
             c: 0.0,
-            s: 1.1111111111111111e-170,
+            s: 1.111_111_113e-315,
             rho: 0.0,
-            h,
         };
         let m = a * b;
         let exact = Dd::of(a.c).mul(Dd::of(b.s)).mul(Dd::of(t));
@@ -1847,11 +1857,11 @@ mod tests {
         assert!(err <= m.rho, "underflow: {err:e} > {:e}", m.rho);
     }
 
-    /// The products' bounds hold for domains from `1e-300` to `1e15` wide (an independent
-    /// review found `(a1 b1) h^2` losing the `t^2` term below `h = 1e-154`, by up to `1e15`
-    /// times the bound, and overshooting it above `1e10`): models with slopes of any size
-    /// against `h` (`|s| h` from `1e-8` to `1e8`), centres 0 or not, against double-double at
-    /// points across `[-h, h]`, for `mul`, `sqr` and the dual product's derivative.
+    /// The products' bounds hold for slopes from subnormal to `1e23` (a slope in `u` of
+    /// `1e-8` to `1e8` times a domain's half-width of `1e-300` to `1e15`; an independent review
+    /// found the products losing the `t^2` term or overshooting their bound on such domains
+    /// when the slope was kept in `u`): models with centres 0 or not, against double-double
+    /// at points across `[-1, 1]`, for `mul`, `sqr` and the dual product's derivative.
     #[test]
     fn taylor_products_hold_on_extreme_domains() {
         use crate::test_rng::Dd;
@@ -1864,16 +1874,15 @@ mod tests {
                 } else {
                     rng.range(-1.0, 1.0) * 10f64.powf(rng.range(-8.0, 8.0))
                 },
-                s: rng.range(-1.0, 1.0) * 10f64.powf(rng.range(-8.0, 8.0)) / h,
+                s: rng.range(-1.0, 1.0) * 10f64.powf(rng.range(-8.0, 8.0)) * h,
                 rho: 0.0,
-                h,
             };
             let (a, b) = (model(&mut rng), model(&mut rng));
             let (c, e) = (model(&mut rng), model(&mut rng));
             let pair = Taylor::dual_product(Dual { v: a, d: c }, Dual { v: b, d: e });
             let at = |p: Taylor, t: f64| Dd::of(p.c).add(Dd::of(p.s).mul(Dd::of(t)));
             for i in 0..=8 {
-                let t = h * (i as f64 / 4.0 - 1.0);
+                let t = i as f64 / 4.0 - 1.0;
                 let checks = [
                     ("mul", a * b, at(a, t).mul(at(b, t))),
                     ("sqr", a.sqr(), at(a, t).mul(at(a, t))),
@@ -1904,7 +1913,7 @@ mod tests {
     /// [`Taylor`]'s dual product ([`Real::dual_product`]) is the separate products' and sum's
     /// to the bit in every centre and slope, its value part in everything, and its derivative's
     /// remainder no larger; that remainder bounds the rounding with no slack (models without a
-    /// remainder against double-double at points across `[-h, h]`, constants among them, scales
+    /// remainder against double-double at points across `[-1, 1]`, constants among them, scales
     /// `1e-8` to `1e8`), and members of the factors' sets give members of the product's.
     #[test]
     fn taylor_dual_products_are_the_products_and_their_sum() {
@@ -1920,9 +1929,8 @@ mod tests {
                 let (m, _, _) = random_model(rng, if constant { 0.0 } else { h });
                 Taylor {
                     c: m.c * scale,
-                    s: if constant { 0.0 } else { m.s * scale },
+                    s: m.s * scale,
                     rho: if exact_case { 0.0 } else { m.rho * scale },
-                    h: if constant { 0.0 } else { h },
                 }
             };
             let a = Dual {
@@ -1935,7 +1943,7 @@ mod tests {
             };
             let fused = Taylor::dual_product(a, b);
             for i in 0..=8 {
-                let t = h * (i as f64 / 4.0 - 1.0);
+                let t = i as f64 / 4.0 - 1.0;
                 if exact_case {
                     let at = |p: Taylor| Dd::of(p.c).add(Dd::of(p.s).mul(Dd::of(t)));
                     let exact = at(a.d).mul(at(b.v)).add(at(a.v).mul(at(b.d)));

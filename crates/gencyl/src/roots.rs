@@ -301,15 +301,16 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
         let one_sign = (fa > 0.0 && fb > 0.0) || (fa < 0.0 && fb < 0.0);
         // The whole interval, where the samples dipped: the pair at once.
         let dips = hints.dips && evaluations == 1;
-        if one_sign && !dips && f.eval(Taylor::var(a, b)).enclosure().excludes_zero() {
+        // `u = m + h t`, `t` in `[-1, 1]`: the models' slopes are in `t`.
+        let var = Taylor::var(a, b);
+        let (m, h) = (var.c, var.s);
+        if one_sign && !dips && f.eval(var).enclosure().excludes_zero() {
             continue;
         }
-        let Dual { v: model, d: slope } = f.eval(Dual::var(Taylor::var(a, b)));
+        let Dual { v: model, d: slope } = f.eval(Dual::var(var));
         if model.enclosure().excludes_zero() {
             continue;
         }
-        // The model's centre, as `Taylor::var` puts it.
-        let m = 0.5 * (a + b);
         if slope.enclosure().excludes_zero() {
             // Newton's method from an estimate in the cell, else from the zero of the model's
             // linear part; `f` is monotone on the cell, and the model bounds `f'`.
@@ -317,8 +318,8 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
                 .guesses
                 .into_iter()
                 .find(|&g| g > a && g < b)
-                .unwrap_or(m - model.c / model.s);
-            let slopes = Slopes::of(m, slope);
+                .unwrap_or(m - h * (model.c / model.s));
+            let slopes = Slopes::of(m, h, slope);
             if let Some(r) = bracketed_root_from(&value, (a, b, fa, fb), start, slopes) {
                 room &= push_root(out, r);
             }
@@ -327,7 +328,7 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
         let narrow = b - a <= opts.min_width || m <= a || m >= b;
         // Split around the predicted critical point, if it is well inside: the middle cell
         // reaches out to where the linear part of f' outweighs (four times) its remainder.
-        let critical = m - slope.c / slope.s;
+        let critical = m - h * (slope.c / slope.s);
         // With one sign at both ends and a critical point inside (a ray passing close by a
         // fiber): the value at it and the model of f' bound f to fourth order.
         if one_sign && a < critical && critical < b {
@@ -335,20 +336,20 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
             let positive =
                 |lo: f64, bound: f64| (Interval::cst(lo) + Interval::cst(bound)).lo > 0.0;
             let excluded = if fa > 0.0 {
-                positive(fy.lo, slope_bound(slope, m, critical, (a, b)))
+                positive(fy.lo, slope_bound(slope, (m, h), critical, (a, b)))
             } else {
-                positive(-fy.hi, slope_bound(-slope, m, critical, (a, b)))
+                positive(-fy.hi, slope_bound(-slope, (m, h), critical, (a, b)))
             };
             if excluded {
                 continue;
             }
         }
-        let half = (4.0 * slope.rho / slope.s.abs())
-            .max(0.02 * slope.h)
-            .min(0.25 * slope.h);
+        let half = (4.0 * slope.rho * h / slope.s.abs())
+            .max(0.02 * h)
+            .min(0.25 * h);
         let (p, q) = (critical - half, critical + half);
         if !narrow
-            && (critical - m).abs() < 0.5 * slope.h
+            && (critical - m).abs() < 0.5 * h
             && a < p
             && p < q
             && q < b
@@ -384,7 +385,8 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
 }
 
 /// A lower bound of `f(x) - f(y)` for `x` in `[a, b]` (holding `y`), from the model
-/// `f'(m + t) in c + s t + [-rho, rho]` (`t` in the model's range): with `tau = x - y` and
+/// `f'(m + h t) in c + s' t + [-rho, rho]` (`t` in `[-1, 1]`, [`Taylor::var`]), that is
+/// `f'(u) in c + s (u - m) + [-rho, rho]` with `s = s' / h` (an interval): with `tau = x - y` and
 /// `g0 = c + s (y - m)` (the model's `f'` at `y`), `f(x) - f(y)` is the integral of `f'` from
 /// `y`, at least `q(tau) = (g0 - rho) tau + s tau^2 / 2` for `tau >= 0` and
 /// `(g0 + rho) tau + s tau^2 / 2` for `tau <= 0`. Each quadratic is bounded below by its
@@ -392,9 +394,9 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
 /// ends; and by `q(0) = 0`. In interval arithmetic. Where `y` is `f`'s critical point
 /// (`g0 ~ 0`) this is about `-rho^2 / 2s`: fourth order in the width (`rho ~ h^2`), where the
 /// value model's own bound is second order (a ray that passes a fiber at a graze).
-fn slope_bound(slope: Taylor, m: f64, y: f64, (a, b): (f64, f64)) -> f64 {
+fn slope_bound(slope: Taylor, (m, h): (f64, f64), y: f64, (a, b): (f64, f64)) -> f64 {
     let i = |x: f64| Interval::exact(x, x);
-    let (c, s, rho) = (i(slope.c), i(slope.s), i(slope.rho));
+    let (c, s, rho) = (i(slope.c), i(slope.s).div_cst(h), i(slope.rho));
     let g0 = c + s * (i(y) - i(m));
     let (right, left) = (g0 - rho, g0 + rho);
     let bound = if slope.s > 0.0 {
@@ -950,19 +952,21 @@ pub fn bracketed_root(
 }
 
 /// What is known of `f'` on a bracket: a first-order model
-/// `f'(centre + t) in c + s t + [-rho, rho]` (the derivative part of `f` evaluated on a
-/// [`Taylor::var`] of the bracket) and `min`, a lower bound of `|f'|` there (0 where the model
-/// does not bound it away from 0).
+/// `f'(centre + t) in c + s t + [-rho, rho]` in `u - centre = t` (from the derivative part of
+/// `f` evaluated on a [`Taylor::var`] of the bracket, [`Taylor::slope_per_unit`]) and `min`, a
+/// lower bound of `|f'|` there (0 where the model does not bound it away from 0).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Slopes {
     centre: f64,
-    model: Taylor,
+    c: f64,
+    s: f64,
+    rho: f64,
     min: f64,
 }
 
 impl Slopes {
-    /// The model `f'(centre + t)` of a [`Taylor::var`] centred at `centre`.
-    pub(crate) fn of(centre: f64, model: Taylor) -> Slopes {
+    /// The model of `f'` from a [`Taylor::var`] with centre `centre` and half-width `h`.
+    pub(crate) fn of(centre: f64, h: f64, model: Taylor) -> Slopes {
         let range = model.enclosure();
         let min = if range.lo > 0.0 {
             range.lo
@@ -971,7 +975,14 @@ impl Slopes {
         } else {
             0.0
         };
-        Slopes { centre, model, min }
+        let (s, rho) = model.slope_per_unit(h);
+        Slopes {
+            centre,
+            c: model.c,
+            s,
+            rho,
+            min,
+        }
     }
 }
 
@@ -1060,12 +1071,17 @@ fn newton_in_bracket(
         }
         let step = fx / dfx;
         let mut newton = x - step;
-        if let Some(Slopes { centre, model, min }) = slopes
+        if let Some(Slopes {
+            centre,
+            c,
+            s,
+            rho,
+            min,
+        }) = slopes
             && min > 0.0
             && newton > a
             && newton < b
         {
-            let Taylor { c, s, rho, .. } = model;
             let change = (dfx - (c + s * (x - centre))).abs()
                 + s.abs() * step.abs()
                 + rho
@@ -1194,8 +1210,9 @@ mod tests {
                 let a = root - (0.02 + 0.96 * next()) * width;
                 let b = a + width;
                 let start = a + next() * width;
-                let Dual { d: slope, .. } = f.eval(Dual::var(Taylor::var(a, b)));
-                let slopes = Slopes::of(0.5 * (a + b), slope);
+                let var = Taylor::var(a, b);
+                let Dual { d: slope, .. } = f.eval(Dual::var(var));
+                let slopes = Slopes::of(var.c, var.s, slope);
                 if slopes.min == 0.0 {
                     // Not proven monotone by the model (the isolator splits such cells).
                     continue;
@@ -1270,8 +1287,9 @@ mod tests {
         let f = Wiggly(x0 + 0.5e-6 * (1e6 * x0).sin() - 1e-10);
         let (a, b) = (x0 - 1e-3, x0 + 1e-3);
         let (fa, fb) = (f.eval(a), f.eval(b));
-        let Dual { d: slope, .. } = f.eval(Dual::var(Taylor::var(a, b)));
-        let slopes = Slopes::of(0.5 * (a + b), slope);
+        let var = Taylor::var(a, b);
+        let Dual { d: slope, .. } = f.eval(Dual::var(var));
+        let slopes = Slopes::of(var.c, var.s, slope);
         assert!(slopes.min >= 0.49 && slope.rho >= 0.49, "{slopes:?}");
         let value = |x: f64| {
             let r = f.eval(Dual::var(x));
@@ -1426,15 +1444,16 @@ mod tests {
             };
             let a = centre - 0.5 * width;
             let b = centre + 0.5 * width;
-            let Dual { v: model, d: slope } = f.eval(Dual::var(Taylor::var(a, b)));
-            let m = 0.5 * (a + b);
-            let critical = m - slope.c / slope.s;
+            let var = Taylor::var(a, b);
+            let Dual { v: model, d: slope } = f.eval(Dual::var(var));
+            let (m, h) = (var.c, var.s);
+            let critical = m - h * (slope.c / slope.s);
             let y = if case % 2 == 0 && a < critical && critical < b {
                 critical
             } else {
                 rng.range(a, b)
             };
-            let bound = slope_bound(slope, m, y, (a, b));
+            let bound = slope_bound(slope, (m, h), y, (a, b));
             let fy = f.eval(y);
             for j in 0..=64 {
                 let x = a + (b - a) * j as f64 / 64.0;

@@ -158,7 +158,7 @@ impl<C: CrossSection, S: SweepRule> PlaneCurve for PhiCurve<'_, C, S> {
         (DVec2::new(p.x.v, p.y.v), DVec2::new(p.x.d, p.y.d))
     }
 
-    /// From the Taylor model `c + s t + r`, `|t| <= h`, `|r| <= rho` of `phi` over `[u0, u1]`:
+    /// From the Taylor model `c + s t + r`, `|t| <= 1`, `|r| <= rho` of `phi` over `[u0, u1]`:
     /// its enclosure, and twice `|rho|`: the piece is within `|rho|` of the line `c + s t`, and
     /// so is the chord's every point (its ends are points of the piece), so the piece is within
     /// `2 |rho|` of the chord. The box is cut down to the end points' box grown by `2 |rho|`
