@@ -90,7 +90,8 @@ impl Default for IsolateOptions {
 /// remainders that shrink like the square of the width, so the enclosures are the true ranges
 /// up to second order and wide subintervals are decided at once. A subinterval that neither
 /// test decides usually holds a critical point of `f` (the minimum between the two hits of a
-/// ray, say): it is cut at the zero `-c1/s1` of the linear model of `f'` into two sides that are
+/// ray, say): it is cut at the zero `m - h c1/s1` of the linear model of `f'` (`u = m + h t`)
+/// into two sides that are
 /// then monotone and a narrow middle where `f` keeps one sign, three cells where halving would
 /// take five to seven. Otherwise it is halved. With [`IsolateOptions::u_shaped`] the first
 /// cells may come from point values instead (`u_shaped_cells`), and Newton's method then

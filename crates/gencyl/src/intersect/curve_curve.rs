@@ -11,8 +11,8 @@
 //! frame turns half round within `1e-6` of `u`, and `phi` with it, through several tangent
 //! directions between two samples; a piece that is not monotone is not inside its end points'
 //! box, and pairs holding roots were pruned. Instead each piece of `phi` carries a first-order
-//! Taylor model of `phi` over its `u` range ([`Taylor`]): `phi(u) = c + s (u - m) + r` with
-//! `|r| <= rho` per coordinate, rounding included. Its enclosure is a box that holds the piece
+//! Taylor model of `phi` over its `u` range ([`Taylor`]): `phi(m + h t) = c + s t + r` with
+//! `|t| <= 1`, `|r| <= rho` per coordinate, rounding included. Its enclosure is a box that holds the piece
 //! whatever its shape, and `rho` bounds the piece's distance from a line, which is what the
 //! linearity test needs. Both tighten as the pieces shrink (`rho` like the square of the
 //! width), so the subdivision ends as before.
