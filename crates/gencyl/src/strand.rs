@@ -4,7 +4,7 @@
 
 use std::f64::consts::TAU;
 
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
 use crate::curve::CubicBezier;
 use crate::cylinder::{GeneralizedCylinder, GeometryError};
@@ -147,19 +147,20 @@ impl Samples {
     fn sample(&mut self, axis: &CubicBezier, steps: usize) {
         let p = axis.points;
         let h = axis.hodograph();
+        let n = steps as f64;
         self.x.clear();
         self.t.clear();
-        // At their full size at once (a strand's first segment would grow them step by step).
-        self.x.reserve(steps + 1);
-        self.t.reserve(steps + 1);
-        for j in 0..=steps {
-            let u = j as f64 / steps as f64;
+        // Extended from a range: reserved once and written without a check per sample.
+        self.x.extend((0..=steps).map(|j| {
+            let u = j as f64 / n;
             let s = 1.0 - u;
-            self.x
-                .push(s * s * s * p[0] + 3.0 * s * u * (s * p[1] + u * p[2]) + u * u * u * p[3]);
-            self.t
-                .push((s * s * h[0] + 2.0 * s * u * h[1] + u * u * h[2]).normalize());
-        }
+            s * s * s * p[0] + 3.0 * s * u * (s * p[1] + u * p[2]) + u * u * u * p[3]
+        }));
+        self.t.extend((0..=steps).map(|j| {
+            let u = j as f64 / n;
+            let s = 1.0 - u;
+            (s * s * h[0] + 2.0 * s * u * h[1] + u * u * h[2]).normalize()
+        }));
     }
 
     fn steps(&self) -> usize {
@@ -173,26 +174,59 @@ impl Samples {
     /// `t_0`). Only a candidate: it need not be accurate where eigenvalues are close (the
     /// tangents then fit every such plane about as well).
     fn plane_normal(&self) -> DVec3 {
-        let m = self.t.iter().fold(DMat3::ZERO, |m, t| {
-            m + DMat3::from_cols(*t * t.x, *t * t.y, *t * t.z)
+        // M and the powers of tr(M) I - M are symmetric: each is kept as its upper triangle
+        // `[x00, x01, x02, x11, x12, x22]`, its entries computed as the full product would
+        // compute them (the same products, summed in the same order).
+        let m = self.t.iter().fold([0.0f64; 6], |m, t| {
+            [
+                m[0] + t.x * t.x,
+                m[1] + t.x * t.y,
+                m[2] + t.x * t.z,
+                m[3] + t.y * t.y,
+                m[4] + t.y * t.z,
+                m[5] + t.z * t.z,
+            ]
         });
-        let trace = m.x_axis.x + m.y_axis.y + m.z_axis.z;
-        let mut q = DMat3::from_diagonal(DVec3::splat(trace)) - m;
+        let trace = m[0] + m[3] + m[5];
+        let mut q = [
+            trace - m[0],
+            0.0 - m[1],
+            0.0 - m[2],
+            trace - m[3],
+            0.0 - m[4],
+            trace - m[5],
+        ];
         for _ in 0..5 {
-            q = q * q;
-            let size = q.to_cols_array().iter().fold(0.0f64, |a, x| a.max(x.abs()));
+            let [a, b, c, d, e, f] = q;
+            q = [
+                a * a + b * b + c * c,
+                a * b + b * d + c * e,
+                a * c + b * e + c * f,
+                b * b + d * d + e * e,
+                b * c + d * e + e * f,
+                c * c + e * e + f * f,
+            ];
+            let size = q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
             if !(size > 0.0) {
                 break;
             }
-            q *= 1.0 / size;
+            q = q.map(|x| x * (1.0 / size));
         }
+        let times = |v: DVec3| {
+            let [a, b, c, d, e, f] = q;
+            DVec3::new(
+                a * v.x + b * v.y + c * v.z,
+                b * v.x + d * v.y + e * v.z,
+                c * v.x + e * v.y + f * v.z,
+            )
+        };
         let (t0, t1) = (self.t[0], self.t[self.steps()]);
         let start = t0
             .cross(t1)
             .try_normalize()
             .unwrap_or(t0.any_orthonormal_vector());
         // Two products: a start nearly normal to the eigenvector is turned toward it.
-        (q * (q * start + start.any_orthonormal_vector() * 1e-3)).normalize_or_zero()
+        times(times(start) + start.any_orthonormal_vector() * 1e-3).normalize_or_zero()
     }
 
     /// The RMF's normals at the samples, from the unit normal `r0` at `u = 0` (normal to the
@@ -205,23 +239,22 @@ impl Samples {
         self.normals.reserve(self.x.len());
         self.normals.push(r0);
         let mut r = r0;
-        for j in 1..self.x.len() {
-            let (x, t, x1, t1) = (self.x[j - 1], self.t[j - 1], self.x[j], self.t[j]);
-            let v1 = x1 - x;
+        for (x, t) in self.x.windows(2).zip(self.t.windows(2)) {
+            let v1 = x[1] - x[0];
             let c1 = v1.length_squared();
-            let (mut rl, mut tl) = (r, t);
+            let (mut rl, mut tl) = (r, t[0]);
             // Coincident samples (cannot happen on a cusp-free axis): no reflection.
             if c1 > 0.0 {
                 rl -= (2.0 / c1) * v1.dot(r) * v1;
-                tl -= (2.0 / c1) * v1.dot(t) * v1;
+                tl -= (2.0 / c1) * v1.dot(t[0]) * v1;
             }
-            let v2 = t1 - tl;
+            let v2 = t[1] - tl;
             let c2 = v2.length_squared();
             // v2 = 0: the first reflection already maps t_j to t_{j+1}.
             if c2 > 0.0 {
                 rl -= (2.0 / c2) * v2.dot(rl) * v2;
             }
-            r = rl - rl.dot(t1) * t1;
+            r = rl - rl.dot(t[1]) * t[1];
             self.normals.push(r);
         }
     }
@@ -237,22 +270,20 @@ impl Samples {
     /// `atan2`; the ends are exact: `psi_0 = atan2(z_0)`, and `psi_N` the value of `atan2(z_N)`
     /// plus the multiple of `2 pi` nearest the summed increments.
     fn fit(&mut self, r: DVec3) -> Angles {
-        let z = |j: usize| {
-            let t = self.t[j];
+        let z = |(t, rn): (&DVec3, &DVec3)| {
             let c = t.cross(r);
-            let rn = self.normals[j];
-            (rn.dot(c.cross(t)), rn.dot(c))
+            (rn.dot(c.cross(*t)), rn.dot(c))
         };
         let steps = self.steps();
-        let (x0, y0) = z(0);
+        let mut zs = self.t.iter().zip(&self.normals).map(z);
+        let (x0, y0) = zs.next().unwrap_or_default();
         let first = y0.atan2(x0);
         let (mut prev, mut sum, mut jump) = ((x0, y0), 0.0, 0.0f64);
         let mut psi = std::mem::take(&mut self.psi);
         psi.clear();
         psi.reserve(steps + 1);
         psi.push(0.0);
-        for j in 1..=steps {
-            let (x, y) = z(j);
+        for (x, y) in zs {
             let (re, im) = (x * prev.0 + y * prev.1, y * prev.0 - x * prev.1);
             let d = if re > 0.0 && re * re > 0.81 * (re * re + im * im) {
                 let q = im / re;
