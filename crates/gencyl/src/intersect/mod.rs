@@ -81,6 +81,34 @@ const DUPLICATE: f64 = 1e-9;
 /// camera rays on upright hair.
 const OBLIQUE: f64 = 1e-3;
 
+/// Below this obliquity somewhere on a range ([`GeneralizedCylinder::side_on_window`]) the
+/// Radial method narrows the range to the bounding tube's window first.
+const SIDE_ON: f64 = 0.03;
+
+/// Bounds `[lo, hi]` of `a'.d` on a range, `max|a'|` and `|d|`
+/// ([`GeneralizedCylinder::obliquity_at_least`]).
+#[derive(Clone, Copy, Debug)]
+struct ObliquityBounds {
+    lo: f64,
+    hi: f64,
+    speed: f64,
+    length: f64,
+}
+
+impl ObliquityBounds {
+    /// Whether `|a'.d| >= fraction max|a'| |d|` on the range, and if so whether `a'.d > 0`.
+    fn at_least(self, fraction: f64) -> Option<bool> {
+        let floor = fraction * self.speed * self.length;
+        if self.lo >= floor {
+            Some(true)
+        } else if self.hi <= -floor {
+            Some(false)
+        } else {
+            None
+        }
+    }
+}
+
 /// A prefilter range `[a, b]` of `[0, 1]` grown to the search margin at the ends of `[lo, hi]`.
 fn widen(a: f64, b: f64, lo: f64, hi: f64) -> (f64, f64) {
     (if a <= 0.0 { lo } else { a }, if b >= 1.0 { hi } else { b })
@@ -760,16 +788,22 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         b: f64,
         fraction: f64,
     ) -> Option<bool> {
+        self.obliquity_bounds(d, a, b).at_least(fraction)
+    }
+
+    /// Bounds of `a'.d` on `[a, b]` (its Bernstein coefficients restricted to the range),
+    /// `max|a'|` and `|d|`, from which [`ObliquityBounds::at_least`] answers for any
+    /// fraction.
+    fn obliquity_bounds(&self, d: DVec3, a: f64, b: f64) -> ObliquityBounds {
         let hod = self.axis.hodograph();
         let q = Bernstein(hod.map(|h| h.dot(d))).restrict(a, b);
         let (lo, hi) = q.range();
-        let floor = fraction * hod.iter().fold(0.0f64, |m, h| m.max(h.length())) * d.length();
-        if lo >= floor {
-            Some(true)
-        } else if hi <= -floor {
-            Some(false)
-        } else {
-            None
+        let speed = hod.iter().fold(0.0f64, |m, h| m.max(h.length()));
+        ObliquityBounds {
+            lo,
+            hi,
+            speed,
+            length: d.length(),
         }
     }
 
@@ -813,9 +847,17 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             let quad = branches::Quadric::new(self, o, d);
             for (a, b) in prefilter::candidate_ranges(self, o, d, oblique_core) {
                 let (a, b) = widen(a, b, lo, hi);
-                if let Some(rising) = self.obliquity(d, a, b) {
+                let obliquity = self.obliquity_bounds(d, a, b);
+                if let Some(rising) = obliquity.at_least(OBLIQUE) {
                     // Away from perpendicular the roots of `g` are simple and well apart, and
-                    // `w(u)` is well conditioned: the cheaper one-dimensional isolation.
+                    // `w(u)` is well conditioned: the cheaper one-dimensional isolation, on the
+                    // bounding tube's window where the ray is nearly side-on.
+                    let side_on = obliquity.at_least(SIDE_ON).is_none();
+                    let (a, b) = match self.side_on_window(o, d, (a, b), side_on) {
+                        Some(None) => continue,
+                        Some(Some(window)) => window,
+                        None => (a, b),
+                    };
                     radial_cells.add(self, (o, d), (a, b), rising, out);
                     continue;
                 }
@@ -915,6 +957,32 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             Some((a, b)) if !self.oblique(d, a, b) => None,
             _ => Some(window),
         }
+    }
+
+    /// The part of the oblique range `[a, b]` where the ray's point in the normal plane lies
+    /// within the section's bounding tube (radius `1.01 max(L0, L1) r_out`, the 1% keeping
+    /// the hits well inside), from that tube's crossings ([`round::tube_window`]), where the
+    /// ray is less than [`SIDE_ON`] off perpendicular somewhere on the range (`side_on`,
+    /// [`ObliquityBounds::at_least`]): `Some(None)`
+    /// where it certainly passes outside the tube there; `None` where the ray is more oblique,
+    /// the fiber may fold, or the crossings are not certified (the range is then taken whole).
+    /// The prefilter keeps where the axis passes within reach of the ray, about `2 R / |a'|`
+    /// wide, while a ray `eps` off perpendicular meets the normal planes within `R` of the
+    /// axis only over about `2 R eps / |a'|`: on the wider range `g` dips that narrowly, and
+    /// its isolation narrows the cell about the dip a few times at each level.
+    fn side_on_window(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        range: (f64, f64),
+        side_on: bool,
+    ) -> Option<Option<(f64, f64)>> {
+        if !side_on || self.may_fold() {
+            return None;
+        }
+        let [l0, l1] = self.sweep.scale_bound();
+        let r = 1.01 * l0.max(l1) * self.section.bounding_radius();
+        round::tube_window(self, o, d, range, r)
     }
 
     /// Searches the General method's window `[a, b]` (of a range ending at `end`) for roots:
