@@ -1580,10 +1580,11 @@ fn oracle_confirms_a_clip_of_the_rim_shorter_than_its_march() {
     );
 }
 
-/// Rays nearly side-on to elliptical fibers, `1e-3` to `5e-2` off their normal planes
-/// (log-uniform) and aimed within 1.4 times the section's reach of the axis: below `3e-2` the
-/// Radial method narrows its ranges to the window of the section's bounding tube
-/// (`side_on_window`), which must keep every crossing.
+/// Rays nearly side-on to elliptical fibers, exactly in a normal plane, `1e-15` to `1e-3` and
+/// `1e-3` to `5e-2` off (log-uniform), aimed within 1.4 times the section's reach of the axis:
+/// below `3e-2` the Radial method narrows its ranges, and below `1e-3` the branch method its
+/// search, to the window of the section's bounding tube (`side_on_window`), which must keep
+/// every crossing.
 #[test]
 fn oracle_side_on_ellipses() {
     for (name, seed) in [
@@ -1594,19 +1595,28 @@ fn oracle_side_on_ellipses() {
         let c = case(name);
         let o = Oracle::new(&c.spec, None);
         let mut rng = Rng::new(seed);
-        let rays: Vec<_> = (0..800)
-            .map(|_| {
+        let rays: Vec<_> = (0..1200)
+            .map(|k| {
                 let u = rng.range(0.02, 0.98);
                 let [t, n, b] = o.frame(u);
                 let target = o.world(o.axis(u)) + rng.ball() * (1.4 * o.rmax_at(u));
                 let a = rng.range(0.0, TAU);
-                let tilt =
-                    10f64.powf(rng.range(-3.0, -1.3)) * if rng.f64() < 0.5 { 1.0 } else { -1.0 };
+                let off = match k % 4 {
+                    0 => 0.0,
+                    1 => 10f64.powf(rng.range(-15.0, -3.0)),
+                    _ => 10f64.powf(rng.range(-3.0, -1.3)),
+                };
+                let tilt = off * if rng.f64() < 0.5 { 1.0 } else { -1.0 };
                 let dirn = (a.cos() * n + a.sin() * b + tilt * t).normalize();
                 let back = rng.range(0.3, 2.0) * o.size;
                 (Ray::new(target - back * dirn, dirn), 0.0, f64::INFINITY)
             })
             .collect();
-        run_rays(&c, &o, &rays, &[(Method::Auto, 800), (Method::Radial, 800)]);
+        run_rays(
+            &c,
+            &o,
+            &rays,
+            &[(Method::Auto, 1200), (Method::Radial, 1200)],
+        );
     }
 }

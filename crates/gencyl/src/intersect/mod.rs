@@ -861,6 +861,13 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     radial_cells.add(self, (o, d), (a, b), rising, out);
                     continue;
                 }
+                // Closer to perpendicular still, the branches search the bounding tube's
+                // window too (the range is side-on: less than `OBLIQUE` off somewhere).
+                let (a, b) = match self.side_on_window(o, d, (a, b), true) {
+                    Some(None) => continue,
+                    Some(Some(window)) => window,
+                    None => (a, b),
+                };
                 // The ellipsoid turns with the frame: no enclosure may span a switch of the
                 // Frenet frame (the sphere of a round fiber does not turn).
                 let mut start = a;
@@ -959,7 +966,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         }
     }
 
-    /// The part of the oblique range `[a, b]` where the ray's point in the normal plane lies
+    /// The part of the range `[a, b]` where the ray's point in the normal plane lies
     /// within the section's bounding tube (radius `1.01 max(L0, L1) r_out`, the 1% keeping
     /// the hits well inside), from that tube's crossings ([`round::tube_window`]), where the
     /// ray is less than [`SIDE_ON`] off perpendicular somewhere on the range (`side_on`,
@@ -969,7 +976,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// The prefilter keeps where the axis passes within reach of the ray, about `2 R / |a'|`
     /// wide, while a ray `eps` off perpendicular meets the normal planes within `R` of the
     /// axis only over about `2 R eps / |a'|`: on the wider range `g` dips that narrowly, and
-    /// its isolation narrows the cell about the dip a few times at each level.
+    /// its isolation narrows the cell about the dip a few times at each level. The Radial
+    /// method's oblique ranges and the branch method's ranges both take it.
     fn side_on_window(
         &self,
         o: DVec3,
