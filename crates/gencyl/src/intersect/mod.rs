@@ -848,26 +848,19 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             for (a, b) in prefilter::candidate_ranges(self, o, d, oblique_core) {
                 let (a, b) = widen(a, b, lo, hi);
                 let obliquity = self.obliquity_bounds(d, a, b);
-                if let Some(rising) = obliquity.at_least(OBLIQUE) {
-                    // Away from perpendicular the roots of `g` are simple and well apart, and
-                    // `w(u)` is well conditioned: the cheaper one-dimensional isolation, on the
-                    // bounding tube's window where the ray is nearly side-on.
-                    let side_on = obliquity.at_least(SIDE_ON).is_none();
-                    let (a, b) = match self.side_on_window(o, d, (a, b), side_on) {
-                        Some(None) => continue,
-                        Some(Some(window)) => window,
-                        None => (a, b),
-                    };
-                    radial_cells.add(self, (o, d), (a, b), rising, out);
-                    continue;
-                }
-                // Closer to perpendicular still, the branches search the bounding tube's
-                // window too (the range is side-on: less than `OBLIQUE` off somewhere).
-                let (a, b) = match self.side_on_window(o, d, (a, b), true) {
+                // Nearly side-on, either method searches only the bounding tube's window.
+                let side_on = obliquity.at_least(SIDE_ON).is_none();
+                let (a, b) = match self.side_on_window(o, d, (a, b), side_on) {
                     Some(None) => continue,
                     Some(Some(window)) => window,
                     None => (a, b),
                 };
+                if let Some(rising) = obliquity.at_least(OBLIQUE) {
+                    // Away from perpendicular the roots of `g` are simple and well apart, and
+                    // `w(u)` is well conditioned: the cheaper one-dimensional isolation.
+                    radial_cells.add(self, (o, d), (a, b), rising, out);
+                    continue;
+                }
                 // The ellipsoid turns with the frame: no enclosure may span a switch of the
                 // Frenet frame (the sphere of a round fiber does not turn).
                 let mut start = a;
@@ -969,10 +962,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// The part of the range `[a, b]` where the ray's point in the normal plane lies
     /// within the section's bounding tube (radius `1.01 max(L0, L1) r_out`, the 1% keeping
     /// the hits well inside), from that tube's crossings ([`round::tube_window`]), where the
-    /// ray is less than [`SIDE_ON`] off perpendicular somewhere on the range (`side_on`,
-    /// [`ObliquityBounds::at_least`]): `Some(None)`
-    /// where it certainly passes outside the tube there; `None` where the ray is more oblique,
-    /// the fiber may fold, or the crossings are not certified (the range is then taken whole).
+    /// ray is less than [`SIDE_ON`] off perpendicular somewhere on the range (`side_on`):
+    /// `Some(None)` where it certainly passes outside the tube there; `None` where the ray is
+    /// more oblique, the fiber may fold, or the crossings are not certified (the range is then
+    /// taken whole).
     /// The prefilter keeps where the axis passes within reach of the ray, about `2 R / |a'|`
     /// wide, while a ray `eps` off perpendicular meets the normal planes within `R` of the
     /// axis only over about `2 R eps / |a'|`: on the wider range `g` dips that narrowly, and
