@@ -81,8 +81,10 @@ const DUPLICATE: f64 = 1e-9;
 /// camera rays on upright hair.
 const OBLIQUE: f64 = 1e-3;
 
-/// Below this obliquity somewhere on a range ([`GeneralizedCylinder::side_on_window`]) the
-/// Radial method narrows the range to the bounding tube's window first.
+/// Below this obliquity somewhere on a range the Radial method, and on its ranges below
+/// [`OBLIQUE`] the branch method, search only the bounding tube's window
+/// ([`GeneralizedCylinder::side_on_window`]). Chosen by measurement (forty-first session):
+/// `0.1` and `0.01` spared side-on views less or cost the ponytail's views more.
 const SIDE_ON: f64 = 0.03;
 
 /// Bounds `[lo, hi]` of `a'.d` on a range, `max|a'|` and `|d|`
