@@ -962,7 +962,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     }
 
     /// The part of the range `[a, b]` where the ray's point in the normal plane lies
-    /// within the section's bounding tube (radius `1.01 max(L0, L1) r_out`, the 1% keeping
+    /// within the section's bounding tube (radius 1.01 times [`Self::reach`], the 1% keeping
     /// the hits well inside), from that tube's crossings ([`round::tube_window`]), where the
     /// ray is less than [`SIDE_ON`] off perpendicular somewhere on the range (`side_on`):
     /// `Some(None)` where it certainly passes outside the tube there; `None` where the ray is
@@ -983,9 +983,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         if !side_on || self.may_fold() {
             return None;
         }
-        let [l0, l1] = self.sweep.scale_bound();
-        let r = 1.01 * l0.max(l1) * self.section.bounding_radius();
-        round::tube_window(self, o, d, range, r)
+        round::tube_window(self, o, d, range, 1.01 * self.reach())
     }
 
     /// Searches the General method's window `[a, b]` (of a range ending at `end`) for roots:
