@@ -1584,7 +1584,9 @@ fn oracle_confirms_a_clip_of_the_rim_shorter_than_its_march() {
 /// `1e-3` to `5e-2` off (log-uniform), aimed within 1.4 times the section's reach of the axis:
 /// below `3e-2` the Radial method narrows its ranges, and below `1e-3` the branch method its
 /// search, to the window of the section's bounding tube (`side_on_window`), which must keep
-/// every crossing.
+/// every crossing. A third aim at the ends' first or last `0.06` of `u` (about the radius), where
+/// a range often ends inside the tube and its window reaches from the one crossing on it to
+/// that end.
 #[test]
 fn oracle_side_on_ellipses() {
     for (name, seed) in [
@@ -1597,7 +1599,12 @@ fn oracle_side_on_ellipses() {
         let mut rng = Rng::new(seed);
         let rays: Vec<_> = (0..1200)
             .map(|k| {
-                let u = rng.range(0.02, 0.98);
+                let u = if k % 3 == 2 {
+                    let s = rng.range(0.0, 0.06);
+                    if rng.f64() < 0.5 { s } else { 1.0 - s }
+                } else {
+                    rng.range(0.02, 0.98)
+                };
                 let [t, n, b] = o.frame(u);
                 let target = o.world(o.axis(u)) + rng.ball() * (1.4 * o.rmax_at(u));
                 let a = rng.range(0.0, TAU);
