@@ -113,7 +113,7 @@ impl<'a, C: CrossSection, S: SweepRule> Quadric<'a, C, S> {
 
     /// The side roots on `[lo, hi]`, appended to `out` (unsorted).
     pub(crate) fn roots(&self, lo: f64, hi: f64, out: &mut SideRoots) {
-        let disc = Discriminant(self);
+        let outside = Outside(self);
         // Zeros narrower than this are not split further: the width of a grazing chord's
         // domain is sqrt(2 r depth) / |a'|, 4e-11 at depth 1e-9 r and r = 1e-6 |a'|.
         let opts = IsolateOptions {
@@ -125,12 +125,16 @@ impl<'a, C: CrossSection, S: SweepRule> Quadric<'a, C, S> {
         let mut ends: ArrayVec<f64, { MAX_ROOTS + 2 }> = ArrayVec::new();
         ends.push(lo);
         let mut zs = ArrayVec::new();
-        isolate_roots(&disc, lo, hi, &opts, &mut zs);
+        let u_shaped = IsolateOptions {
+            u_shaped: true,
+            ..opts
+        };
+        isolate_roots(&outside, lo, hi, &u_shaped, &mut zs);
         ends.extend(zs);
         ends.push(hi);
         for w in ends.windows(2) {
             let (a, b) = (w[0], w[1]);
-            if !(b > a) || !(disc.eval(0.5 * (a + b)) > 0.0) {
+            if !(b > a) || !(outside.eval(0.5 * (a + b)) < 0.0) {
                 continue;
             }
             for sign in [-1.0, 1.0] {
@@ -177,14 +181,19 @@ impl<'a, C: CrossSection, S: SweepRule> Quadric<'a, C, S> {
     }
 }
 
-/// `D(u)`: the ray meets the ellipsoid `E_u` where it is non-negative.
-struct Discriminant<'q, 'a, C, S>(&'q Quadric<'a, C, S>);
+/// `-D(u)`: the ray meets the ellipsoid `E_u` where it is not positive. Across a fiber it is
+/// U-shaped (positive where the range begins and ends, beyond the ellipsoids' reach, negative
+/// where the ray passes through them), which [`IsolateOptions::u_shaped`] splits from point
+/// values without enclosing the whole range first (the CT of an elliptical ply about its fiber
+/// axis, whose rays within `1e-3` of perpendicular take this method: 10% fewer instructions in
+/// it than with `D` and plain cells).
+struct Outside<'q, 'a, C, S>(&'q Quadric<'a, C, S>);
 
-impl<C: CrossSection, S: SweepRule> Function1D for Discriminant<'_, '_, C, S> {
+impl<C: CrossSection, S: SweepRule> Function1D for Outside<'_, '_, C, S> {
     #[inline]
     fn eval<T: Real>(&self, u: T) -> T {
         let q = self.0;
-        q.terms(u, q.shift(u.value())).disc
+        -q.terms(u, q.shift(u.value())).disc
     }
 }
 
