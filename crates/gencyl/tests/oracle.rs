@@ -210,6 +210,25 @@ fn case(name: &str) -> Case {
             ),
             loop_points: None,
         },
+        // A short, gently bent elliptical piece, four radii long (a strand segment of a CT
+        // phantom's ply): seen side-on, its bounding tube's window on the whole axis is
+        // certified and searched without the prefilter's ranges.
+        "short-ellipse" => Case {
+            name: "short-ellipse",
+            spec: fiber(
+                [
+                    v3(0.0, 0.0, 0.0),
+                    v3(0.08, 0.01, 0.0),
+                    v3(0.16, 0.015, 0.005),
+                    v3(0.24, 0.01, 0.01),
+                ],
+                [0.06, 0.06],
+                [0.035, 0.035],
+                [0.2, 0.9],
+                true,
+            ),
+            loop_points: None,
+        },
         "straight-default" => {
             let w = v3(0.6, 0.7, 0.2);
             Case {
@@ -1586,13 +1605,15 @@ fn oracle_confirms_a_clip_of_the_rim_shorter_than_its_march() {
 /// search, to the window of the section's bounding tube (`side_on_window`), which must keep
 /// every crossing. A third aim at the ends' first or last `0.06` of `u` (about the radius), where
 /// a range often ends inside the tube and its window reaches from the one crossing on it to
-/// that end.
+/// that end. On the short piece most rays take the window of the whole axis instead of the
+/// prefilter's ranges.
 #[test]
 fn oracle_side_on_ellipses() {
     for (name, seed) in [
         ("ellipse", 61),
         ("twist-ellipse", 62),
         ("straight-default", 63),
+        ("short-ellipse", 64),
     ] {
         let c = case(name);
         let o = Oracle::new(&c.spec, None);

@@ -111,6 +111,39 @@ impl ObliquityBounds {
     }
 }
 
+/// `a'.d` on the whole axis for one local ray: its Bernstein coefficients on `[0, 1]`, `max|a'|`
+/// and `|d|`, formed once and restricted to each of the ray's ranges ([`AxisObliquity::on`]).
+#[derive(Clone, Copy, Debug)]
+struct AxisObliquity {
+    q: Bernstein<3>,
+    speed: f64,
+    length: f64,
+}
+
+impl AxisObliquity {
+    /// The bounds on `[a, b]`, as [`GeneralizedCylinder::obliquity_bounds`] gives them.
+    fn on(&self, a: f64, b: f64) -> ObliquityBounds {
+        let (lo, hi) = self.q.restrict(a, b).range();
+        ObliquityBounds {
+            lo,
+            hi,
+            speed: self.speed,
+            length: self.length,
+        }
+    }
+
+    /// Whether the ray is less than [`SIDE_ON`] off perpendicular somewhere on `[0, 1]` and
+    /// perpendicular nowhere, as far as the coefficients (which bound `a'.d` there) tell: they
+    /// keep one sign, and the least in size is below `SIDE_ON max|a'| |d|`. Only whether the
+    /// whole axis' window is worth trying: the window's own certificate decides the rest.
+    fn side_on_throughout(&self) -> bool {
+        let q = self.q.0;
+        let one_sign = q.iter().all(|&x| x > 0.0) || q.iter().all(|&x| x < 0.0);
+        let least = q.iter().fold(f64::INFINITY, |m, x| m.min(x.abs()));
+        one_sign && least < SIDE_ON * self.speed * self.length
+    }
+}
+
 /// A prefilter range `[a, b]` of `[0, 1]` grown to the search margin at the ends of `[lo, hi]`.
 fn widen(a: f64, b: f64, lo: f64, hi: f64) -> (f64, f64) {
     (if a <= 0.0 { lo } else { a }, if b >= 1.0 { hi } else { b })
@@ -797,14 +830,15 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// `max|a'|` and `|d|`, from which [`ObliquityBounds::at_least`] answers for any
     /// fraction.
     fn obliquity_bounds(&self, d: DVec3, a: f64, b: f64) -> ObliquityBounds {
+        self.axis_obliquity(d).on(a, b)
+    }
+
+    /// `a'.d` on the whole axis, formed once for a ray's ranges ([`AxisObliquity`]).
+    fn axis_obliquity(&self, d: DVec3) -> AxisObliquity {
         let hod = self.axis.hodograph();
-        let q = Bernstein(hod.map(|h| h.dot(d))).restrict(a, b);
-        let (lo, hi) = q.range();
-        let speed = hod.iter().fold(0.0f64, |m, h| m.max(h.length()));
-        ObliquityBounds {
-            lo,
-            hi,
-            speed,
+        AxisObliquity {
+            q: Bernstein(hod.map(|h| h.dot(d))),
+            speed: hod.iter().fold(0.0f64, |m, h| m.max(h.length())),
             length: d.length(),
         }
     }
@@ -847,9 +881,32 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 return;
             }
             let quad = branches::Quadric::new(self, o, d);
+            let axis = self.axis_obliquity(d);
+            // Nearly side-on on the whole axis, and never exactly (`a'.d` keeps its sign, as
+            // the tube's certificate needs): where the bounding tube's window there is
+            // certified, it is the one range searched, without the prefilter's.
+            if axis.side_on_throughout()
+                && let Some(window) = self.side_on_window(o, d, (lo, hi), true)
+            {
+                if let Some((a, b)) = window {
+                    self.radial_range_roots(
+                        (o, d),
+                        &quad,
+                        (a, b),
+                        axis.on(a, b),
+                        out,
+                        radial_cells,
+                    );
+                }
+                return;
+            }
+            let oblique_core = |a: f64, c: f64| {
+                let (a, c) = widen(a, c, lo, hi);
+                axis.on(a, c).at_least(OBLIQUE).is_some()
+            };
             for (a, b) in prefilter::candidate_ranges(self, o, d, oblique_core) {
                 let (a, b) = widen(a, b, lo, hi);
-                let obliquity = self.obliquity_bounds(d, a, b);
+                let obliquity = axis.on(a, b);
                 // Nearly side-on, either method searches only the bounding tube's window.
                 let side_on = obliquity.at_least(SIDE_ON).is_none();
                 let (a, b) = match self.side_on_window(o, d, (a, b), side_on) {
@@ -857,22 +914,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                     Some(Some(window)) => window,
                     None => (a, b),
                 };
-                if let Some(rising) = obliquity.at_least(OBLIQUE) {
-                    // Away from perpendicular the roots of `g` are simple and well apart, and
-                    // `w(u)` is well conditioned: the cheaper one-dimensional isolation.
-                    radial_cells.add(self, (o, d), (a, b), rising, out);
-                    continue;
-                }
-                // The ellipsoid turns with the frame: no enclosure may span a switch of the
-                // Frenet frame (the sphere of a round fiber does not turn).
-                let mut start = a;
-                if matches!(self.framing, Framing::Frenet) {
-                    for s in self.switches_in(a, b) {
-                        quad.roots(start, s.next_down(), out);
-                        start = s;
-                    }
-                }
-                quad.roots(start, b, out);
+                self.radial_range_roots((o, d), &quad, (a, b), obliquity, out, radial_cells);
             }
             return;
         }
@@ -934,6 +976,35 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             }
         }
         self.push_general_roots(o, d, &mut found, out);
+    }
+
+    /// The Radial method's search of the range `[a, b]`, whose bounds of `a'.d` are
+    /// `obliquity` (on it or on a range that holds it): away from perpendicular the isolation of
+    /// `g` ([`radial_cells::RadialCells::add`]: its roots are simple and well apart, and `w(u)`
+    /// well conditioned), else the branch functions ([`branches::Quadric::roots`]).
+    fn radial_range_roots(
+        &self,
+        (o, d): (DVec3, DVec3),
+        quad: &branches::Quadric<C, S>,
+        (a, b): (f64, f64),
+        obliquity: ObliquityBounds,
+        out: &mut SideRoots,
+        radial_cells: &mut radial_cells::RadialCells,
+    ) {
+        if let Some(rising) = obliquity.at_least(OBLIQUE) {
+            radial_cells.add(self, (o, d), (a, b), rising, out);
+            return;
+        }
+        // The ellipsoid turns with the frame: no enclosure may span a switch of the Frenet
+        // frame (the sphere of a round fiber does not turn).
+        let mut start = a;
+        if matches!(self.framing, Framing::Frenet) {
+            for s in self.switches_in(a, b) {
+                quad.roots(start, s.next_down(), out);
+                start = s;
+            }
+        }
+        quad.roots(start, b, out);
     }
 
     /// The General method's window `[a, b]` where `phi` lies in the section's bounding disc
