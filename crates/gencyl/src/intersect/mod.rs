@@ -83,7 +83,9 @@ const OBLIQUE: f64 = 1e-3;
 
 /// Below this obliquity somewhere on a range the Radial method, and on its ranges below
 /// [`OBLIQUE`] the branch method, search only the bounding tube's window
-/// ([`GeneralizedCylinder::side_on_window`]). Chosen by measurement (forty-first session):
+/// ([`GeneralizedCylinder::side_on_window`]); where the ray is this side-on throughout the
+/// axis ([`AxisObliquity::side_on_throughout`]), the whole axis' window first, without the
+/// prefilter's ranges. Chosen by measurement (forty-first session):
 /// `0.1` and `0.01` spared side-on views less or cost the ponytail's views more.
 const SIDE_ON: f64 = 0.03;
 
