@@ -439,7 +439,7 @@ impl Film {
     }
 }
 
-/// Linear [0,1] to 8-bit sRGB with the standard curve (as `render::write_png`).
+/// Linear `[0, 1]` to 8-bit sRGB with the standard curve (as `render::write_png`).
 fn srgb8(v: f32) -> u8 {
     let c = (v as f64).clamp(0.0, 1.0);
     let s = if c <= 0.0031308 {

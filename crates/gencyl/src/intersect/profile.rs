@@ -6,8 +6,8 @@
 //! `H(u) = q^3 F(phi(u)) = Q^3 F((X, Y) / Q)`, `(X, Y) = q phi`, `Q = q = a'.d`,
 //!
 //! a function of `u` alone, free of `phi`'s poles, whose zeros are isolated as the Radial
-//! method isolates `g` ([`isolate_roots`]: Taylor-model enclosures, bracketed Newton). Every
-//! crossing of the piece is a simple zero of `H` (the gradient of `F` does not vanish on the
+//! method isolates `g` ([`crate::roots::isolate_roots`]: Taylor-model enclosures, bracketed
+//! Newton). Every crossing of the piece is a simple zero of `H` (the gradient of `F` does not vanish on the
 //! piece) or, for a ray that touches the piece, a double zero within the tangent tolerance. A
 //! zero is kept when `phi` there inverts to a parameter of the piece
 //! ([`PieceImplicit::parameter_of`]); the rest lie on the curve's continuation beyond the piece.

@@ -19,7 +19,7 @@
 //! each stretch where `D >= 0` by enclosures of `H` and `H'` (a cell whose `H` keeps one sign holds
 //! no root, one whose `H'` keeps one sign holds at most one), and each isolated root polished by
 //! Newton's method inside its bracket. Where `Z'` keeps one sign on the range, both branches are
-//! first isolated together through the polynomial `G = H+ H- = P^2 - Z'^2 D` ([`product_roots`]),
+//! first isolated together through the polynomial `G = H+ H- = P^2 - Z'^2 D` ([`product_cells`]),
 //! which has no singular ends and costs one subdivision instead of two. On a tube that cannot
 //! fold, where the distance from the ray to the axis is convex, not even that: each branch has
 //! exactly one root where `D > 0` and none elsewhere ([`tube_cells`]). Rounding: every
