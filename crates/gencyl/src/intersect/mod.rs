@@ -123,7 +123,7 @@ struct AxisObliquity {
 }
 
 impl AxisObliquity {
-    /// The bounds on `[a, b]`, as [`GeneralizedCylinder::obliquity_bounds`] gives them.
+    /// Bounds of `a'.d` on `[a, b]`: its Bernstein coefficients restricted to the range.
     fn on(&self, a: f64, b: f64) -> ObliquityBounds {
         let (lo, hi) = self.q.restrict(a, b).range();
         ObliquityBounds {
@@ -825,14 +825,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
         b: f64,
         fraction: f64,
     ) -> Option<bool> {
-        self.obliquity_bounds(d, a, b).at_least(fraction)
-    }
-
-    /// Bounds of `a'.d` on `[a, b]` (its Bernstein coefficients restricted to the range),
-    /// `max|a'|` and `|d|`, from which [`ObliquityBounds::at_least`] answers for any
-    /// fraction.
-    fn obliquity_bounds(&self, d: DVec3, a: f64, b: f64) -> ObliquityBounds {
-        self.axis_obliquity(d).on(a, b)
+        self.axis_obliquity(d).on(a, b).at_least(fraction)
     }
 
     /// `a'.d` on the whole axis, formed once for a ray's ranges ([`AxisObliquity`]).
@@ -888,7 +881,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             // the tube's certificate needs): where the bounding tube's window there is
             // certified, it is the one range searched, without the prefilter's.
             if axis.side_on_throughout()
-                && let Some(window) = self.side_on_window(o, d, (lo, hi), true)
+                && let Some(window) = self.side_on_window(o, d, (lo, hi))
             {
                 if let Some((a, b)) = window {
                     self.radial_range_roots(
@@ -911,7 +904,8 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
                 let obliquity = axis.on(a, b);
                 // Nearly side-on, either method searches only the bounding tube's window.
                 let side_on = obliquity.at_least(SIDE_ON).is_none();
-                let (a, b) = match self.side_on_window(o, d, (a, b), side_on) {
+                let window = side_on.then(|| self.side_on_window(o, d, (a, b)));
+                let (a, b) = match window.flatten() {
                     Some(None) => continue,
                     Some(Some(window)) => window,
                     None => (a, b),
@@ -1036,24 +1030,17 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 
     /// The part of the range `[a, b]` where the ray's point in the normal plane lies
     /// within the section's bounding tube (radius 1.01 times [`Self::reach`], the 1% keeping
-    /// the hits well inside), from that tube's crossings ([`round::tube_window`]), where the
-    /// ray is less than [`SIDE_ON`] off perpendicular somewhere on the range (`side_on`):
-    /// `Some(None)` where it certainly passes outside the tube there; `None` where the ray is
-    /// more oblique, the fiber may fold, or the crossings are not certified (the range is then
-    /// taken whole).
+    /// the hits well inside), from that tube's crossings ([`round::tube_window`]), asked where
+    /// the ray is less than [`SIDE_ON`] off perpendicular somewhere on the range: `Some(None)`
+    /// where it certainly passes outside the tube there; `None` where the fiber may fold or the
+    /// crossings are not certified (the range is then taken whole).
     /// The prefilter keeps where the axis passes within reach of the ray, about `2 R / |a'|`
     /// wide, while a ray `eps` off perpendicular meets the normal planes within `R` of the
     /// axis only over about `2 R eps / |a'|`: on the wider range `g` dips that narrowly, and
     /// its isolation narrows the cell about the dip a few times at each level. The Radial
     /// method's oblique ranges and the branch method's ranges both take it.
-    fn side_on_window(
-        &self,
-        o: DVec3,
-        d: DVec3,
-        range: (f64, f64),
-        side_on: bool,
-    ) -> Option<Option<(f64, f64)>> {
-        if !side_on || self.may_fold() {
+    fn side_on_window(&self, o: DVec3, d: DVec3, range: (f64, f64)) -> Option<Option<(f64, f64)>> {
+        if self.may_fold() {
             return None;
         }
         round::tube_window(self, o, d, range, 1.01 * self.reach())
