@@ -244,6 +244,9 @@ pub(crate) struct Hints {
     /// (every cell with one sign at both ends took the value model first, and 777 of the 1,831
     /// failed on ranges that held no crossing).
     pub dips: bool,
+    /// The U-shaped interval that was cut, where one was: its sides' cells may take one model
+    /// of `f'` over all of it ([`UShape`]).
+    pub shape: Option<UShape>,
 }
 
 impl Hints {
@@ -251,6 +254,7 @@ impl Hints {
     pub const NONE: Hints = Hints {
         guesses: [f64::NAN; 2],
         dips: false,
+        shape: None,
     };
 
     /// The same estimates for part of the cells (the dip was sampled in the whole).
@@ -276,6 +280,8 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
         (r.v, r.d)
     };
     let point = |u: f64| f.eval(u);
+    // The model of `f'` over the whole U-shaped interval, once a side has asked for it.
+    let mut whole: Option<Slopes> = None;
     // Cells, processed left to right so roots come out ascending: pushed last first.
     let mut stack: ArrayVec<Cell, 256> = ArrayVec::new();
     stack.extend(cells.iter().rev().copied());
@@ -300,6 +306,25 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
         // passes by), the enclosure of `f` alone, a third of the work of `f` and `f'`
         // together, often rules the cell out; it is the same as the value part of the pair.
         let one_sign = (fa > 0.0 && fb > 0.0) || (fa < 0.0 && fb < 0.0);
+        // A side of a U-shaped interval, monotone by the model of `f'` over all of it: its root.
+        if let Some(shape) = hints.shape
+            && shape.side_near_parabola((a, b, fa, fb))
+        {
+            let slopes = whole
+                .get_or_insert_with(|| {
+                    evaluations += 1;
+                    shape.slopes(f)
+                })
+                .on(a, b);
+            if slopes.min > 0.0 {
+                let start = hints.guesses.into_iter().find(|&g| g > a && g < b);
+                let start = start.unwrap_or(0.5 * (a + b));
+                if let Some(r) = bracketed_root_from(&value, (a, b, fa, fb), start, slopes) {
+                    room &= push_root(out, r);
+                }
+                continue;
+            }
+        }
         // The whole interval, where the samples dipped: the pair at once.
         let dips = hints.dips && evaluations == 1;
         // `u = m + h t`, `t` in `[-1, 1]`: the models' slopes are in `t`.
@@ -385,6 +410,69 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
     }
 }
 
+/// A U-shaped interval that [`u_shaped_cells`] cut: `f` positive at its ends `lo` and `hi`,
+/// negative at `x` between them. Its cells are the entry's side `[lo, p]`, the middle and the
+/// exit's side `[q, hi]` (`p <= x <= q`, where `f` is negative too). Across a fiber `f'` is
+/// close to linear on such an interval, and one model of `f'` over all of it usually proves
+/// both sides monotone ([`Slopes::on`]): one pair of models where each side took its own (the
+/// middle keeps its model of `f` alone).
+///
+/// Each side decides from its own samples whether to ask for that model, so a query that
+/// isolates one side (the nearest crossing, [`PendingCut`]) and one that isolates both take
+/// the same steps on it, and find its root to the bit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct UShape {
+    lo: f64,
+    hi: f64,
+    flo: f64,
+    fhi: f64,
+    x: f64,
+    fx: f64,
+}
+
+impl UShape {
+    /// Whether `cell` is a side (`[lo, p]` or `[q, hi]`, with a sign change) whose values with
+    /// the ends' and `x`'s are close to a parabola: through the four points `lo < y < z < hi`
+    /// (the side's cut and `x`), the divided differences `d2 ~ f''/2` and `d3 ~ f'''/6` put
+    /// `f'` within `3 |d3| H^2` of a line of slope `2 d2` over the half-width `H`, so its zero
+    /// is known to within `1.5 |d3| H^2 / d2`; that should lie well beyond the cut, or the model
+    /// could not prove the side monotone (and would cost a pair for nothing).
+    fn side_near_parabola(&self, (a, b, fa, fb): Cell) -> bool {
+        let UShape {
+            lo,
+            hi,
+            flo,
+            fhi,
+            x,
+            fx,
+        } = *self;
+        let ((y, fy), (z, fz), cut) = if a == lo && b <= x && fa > 0.0 && fb < 0.0 {
+            ((b, fb), (x, fx), b)
+        } else if b == hi && a >= x && fa < 0.0 && fb > 0.0 {
+            ((x, fx), (a, fa), a)
+        } else {
+            return false;
+        };
+        let d = |(a, fa): (f64, f64), (b, fb): (f64, f64)| (fb - fa) / (b - a);
+        let (d01, d12, d23) = (
+            d((lo, flo), (y, fy)),
+            d((y, fy), (z, fz)),
+            d((z, fz), (hi, fhi)),
+        );
+        let (d012, d123) = ((d12 - d01) / (z - lo), (d23 - d12) / (hi - y));
+        let d3 = (d123 - d012) / (hi - lo);
+        let (d2, half) = (0.5 * (d012 + d123), 0.5 * (hi - lo));
+        12.0 * d3.abs() * half * half <= d2 * (x - cut).abs()
+    }
+
+    /// The model of `f'` over `[lo, hi]`, from one pair of models.
+    fn slopes<F: Function1D>(&self, f: &F) -> Slopes {
+        let var = Taylor::var(self.lo, self.hi);
+        let Dual { d: slope, .. } = f.eval(Dual::var(var));
+        Slopes::of(var.c, var.s, slope)
+    }
+}
+
 /// A lower bound of `f(x) - f(y)` for `x` in `[a, b]` (holding `y`), from the model
 /// `f'(m + h t) in c + s' t + [-rho, rho]` (`t` in `[-1, 1]`, [`Taylor::var`]), that is
 /// `f'(u) in c + s (u - m) + [-rho, rho]` with `s = s' / h` (an interval): with `tau = x - y` and
@@ -421,6 +509,11 @@ fn slope_bound(slope: Taylor, (m, h): (f64, f64), y: f64, (a, b): (f64, f64)) ->
 /// `min` of two numbers, NaN-free by the caller.
 fn fmin(a: f64, b: f64) -> f64 {
     if a < b { a } else { b }
+}
+
+/// `max` of two numbers, NaN-free by the caller.
+fn fmax(a: f64, b: f64) -> f64 {
+    if a > b { a } else { b }
 }
 
 /// A cell of [`isolate_roots`]: `(a, b, f(a), f(b))`.
@@ -505,6 +598,14 @@ fn u_shaped_cells(
         (lo, hi)
     };
     let pending = |upper: bool, r: f64| PendingCut { x, fx, r, upper };
+    let shape = UShape {
+        lo,
+        hi,
+        flo,
+        fhi,
+        x,
+        fx,
+    };
     let (cells, guesses, pending) = match first {
         FirstRoot::Both => {
             let ((p, fp), left) = cut_side(point, (lo, flo), (x, fx), r1);
@@ -542,6 +643,7 @@ fn u_shaped_cells(
         hints: Hints {
             guesses,
             dips: false,
+            shape: Some(shape),
         },
         pending,
     }
@@ -984,6 +1086,38 @@ impl Slopes {
             rho,
             min,
         }
+    }
+}
+
+impl Slopes {
+    /// The same model on `[a, b]`, part of its domain, with `min` bounded there: the line
+    /// `c + s (u - centre)` takes its extremes over `[a, b]` at the ends, so where it stays
+    /// beyond `rho` of 0 at both, with one sign, `|f'| >= min(|line(a)|, |line(b)|) - rho`;
+    /// otherwise `min = 0`. Each end's line value is computed in `f64` and moved away from 0
+    /// by `4 eps (|c| + |s (u - centre)|)`, more than its three roundings can take; the two
+    /// subtractions from it round by half an ulp each, relative to their results, which
+    /// `1 - eps` takes back. Non-finite parts give `min = 0`.
+    #[inline]
+    pub(crate) fn on(self, a: f64, b: f64) -> Slopes {
+        let line = |u: f64| {
+            let k = self.s * (u - self.centre);
+            (self.c + k, 4.0 * f64::EPSILON * (self.c.abs() + k.abs()))
+        };
+        let ((la, ea), (lb, eb)) = (line(a), line(b));
+        // NaN or infinite parts bound nothing.
+        if !(la + lb + ea + eb + self.rho).is_finite() {
+            return Slopes { min: 0.0, ..self };
+        }
+        let lo = fmin(la - ea, lb - eb) - self.rho;
+        let hi = fmax(la + ea, lb + eb) + self.rho;
+        let min = if lo > 0.0 {
+            lo * (1.0 - f64::EPSILON)
+        } else if hi < 0.0 {
+            -hi * (1.0 - f64::EPSILON)
+        } else {
+            0.0
+        };
+        Slopes { min, ..self }
     }
 }
 
@@ -1476,6 +1610,156 @@ mod tests {
             checked > 190_000 && tighter > 100,
             "{checked} samples, {tighter} tighter"
         );
+    }
+
+    /// `Slopes::on` bounds `|f'|` below on part of the model's domain: for cubics with a wobble
+    /// of up to a tenth of their size (whose slopes the model encloses with a remainder, not
+    /// reproduces), models over cells 1e-9 to 1 wide and parts of them from the whole cell to a
+    /// millionth of it, `|f'|` (the analytic derivative) at 65 points of the part is never
+    /// below `min`, less `f64`'s rounding of the samples. And the bound is not vacuous: it is
+    /// positive on most parts where `f'` keeps away from zero.
+    #[test]
+    fn slopes_on_a_part_bound_the_slope_there() {
+        struct Wobbly {
+            k: [f64; 4],
+            wobble: f64,
+        }
+        impl Wobbly {
+            /// `f'(u) = k1 + 2 k2 u + 3 k3 u^2 + 7 w cos(7 u)`.
+            fn slope(&self, u: f64) -> f64 {
+                let k = self.k;
+                k[1] + u * (2.0 * k[2] + 3.0 * k[3] * u) + 7.0 * self.wobble * (7.0 * u).cos()
+            }
+        }
+        impl Function1D for Wobbly {
+            fn eval<T: Real>(&self, u: T) -> T {
+                let k = self.k;
+                let wobble = (u.scale(7.0)).sin().scale(self.wobble);
+                T::cst(k[0]) + u * (T::cst(k[1]) + u * (T::cst(k[2]) + u.scale(k[3]))) + wobble
+            }
+        }
+        let mut rng = crate::test_rng::Lcg(113);
+        let (mut away, mut proved, mut checked) = (0, 0, 0);
+        for case in 0..4000 {
+            let k: [f64; 4] = std::array::from_fn(|_| rng.range(-2.0, 2.0));
+            let f = Wobbly {
+                k,
+                wobble: rng.range(0.0, 0.1),
+            };
+            let width = 10f64.powf(rng.range(-9.0, 0.0));
+            let lo = rng.range(-1.0, 1.0);
+            let hi = lo + width;
+            let var = Taylor::var(lo, hi);
+            let Dual { d: slope, .. } = f.eval(Dual::var(var));
+            let whole = Slopes::of(var.c, var.s, slope);
+            let part = width * 10f64.powf(rng.range(-6.0, 0.0));
+            let a = rng.range(lo, hi - part);
+            let b = if case % 4 == 0 { hi } else { a + part };
+            let min = whole.on(a, b).min;
+            assert!(min >= 0.0, "case {case}: {min}");
+            let mut least = f64::INFINITY;
+            for j in 0..=64 {
+                let x = a + (b - a) * j as f64 / 64.0;
+                let d = f.slope(x);
+                let slack = 1e-14 * (k.iter().map(|c| c.abs()).sum::<f64>() + 1.0);
+                assert!(
+                    d.abs() + slack >= min,
+                    "case {case}: |f'({x})| = {} below {min} on [{a}, {b}] of [{lo}, {hi}]",
+                    d.abs()
+                );
+                least = least.min(d.abs());
+                checked += 1;
+            }
+            // Where |f'| stays above a tenth of the model's reach (its slope across the cell
+            // and remainder), the part should be proved monotone.
+            let reach = (slope.s.abs() + slope.rho) / var.s * width;
+            if least > 0.1 * reach + 1e-9 {
+                away += 1;
+                proved += usize::from(min > 0.0);
+            }
+        }
+        assert!(checked > 250_000, "{checked} samples");
+        assert!(
+            away > 1000 && 10 * proved >= 9 * away,
+            "{proved} of {away} parts away from f' = 0 proved monotone"
+        );
+    }
+
+    /// On a U-shaped interval ([`u_shaped_cells`] cuts it into the entry's side, a middle and
+    /// the exit's side), one model of `f'` over the whole interval proves both sides monotone:
+    /// U's close to a parabola (as `g` is across a fiber: a bend `1 + k u`, `|k| <= 0.03`, and a
+    /// wobble of at most 0.003) with two roots (far apart; near the ends; 2e-9 to 0.2 apart in a
+    /// window 1.5 to 4 times as wide) mostly (540 of 600) take that one pair of models and the
+    /// middle's model of `f` alone, and find both roots to 1e-13. A W (a side with three roots, where no model can prove that
+    /// side monotone) and a U whose side holds a wiggle still give every root: the sides fall
+    /// back to their own models.
+    #[test]
+    fn one_slope_model_takes_both_sides_of_a_u() {
+        /// `(u - r0) (u - r1) (1 + k u + w sin(5 u))`.
+        struct Gentle {
+            roots: [f64; 2],
+            k: f64,
+            w: f64,
+        }
+        impl Function1D for Gentle {
+            fn eval<T: Real>(&self, u: T) -> T {
+                let [r0, r1] = self.roots;
+                let bend = T::cst(1.0) + u.scale(self.k) + u.scale(5.0).sin().scale(self.w);
+                (u - T::cst(r0)) * (u - T::cst(r1)) * bend
+            }
+        }
+        let mut rng = crate::test_rng::Lcg(59);
+        let shaped = IsolateOptions {
+            u_shaped: true,
+            ..IsolateOptions::default()
+        };
+        let mut one_pair = 0;
+        for case in 0..600 {
+            // Roots, and the interval about them.
+            let (roots, lo, hi) = match case % 3 {
+                0 => (vec![rng.range(0.05, 0.45), rng.range(0.55, 0.95)], 0.0, 1.0),
+                1 => (
+                    vec![rng.range(1e-6, 1e-3), 1.0 - rng.range(1e-6, 1e-3)],
+                    0.0,
+                    1.0,
+                ),
+                // A narrow U (a window about a ray's crossing), off its interval's middle.
+                _ => {
+                    let (r, h) = (rng.range(0.3, 0.7), 10f64.powf(rng.range(-9.0, -1.0)));
+                    let reach = |rng: &mut crate::test_rng::Lcg| h * rng.range(1.5, 4.0);
+                    let (lo, hi) = (r - reach(&mut rng), r + reach(&mut rng));
+                    (vec![r - h, r + h], lo, hi)
+                }
+            };
+            let f = Gentle {
+                roots: [roots[0], roots[1]],
+                k: rng.range(-0.03, 0.03),
+                w: rng.range(0.0, 0.003),
+            };
+            let counted = Counted::new(&f);
+            let mut out = ArrayVec::new();
+            assert!(isolate_roots(&counted, lo, hi, &shaped, &mut out));
+            assert_both_find(&out, &out, &roots, case);
+            one_pair += usize::from(counted.enclosures.get() == 1);
+        }
+        assert!(
+            one_pair >= 540,
+            "{one_pair} of 600 U's took one pair of models"
+        );
+        // A W: the lower side holds three roots.
+        let w = Product {
+            roots: vec![0.1, 0.2, 0.3, 0.9],
+        };
+        let mut out = ArrayVec::new();
+        assert!(isolate_roots(&w, 0.0, 1.0, &shaped, &mut out));
+        assert_both_find(&out, &out, &w.roots, 600);
+        // A U with a wiggle on its lower side: a pair of roots 1e-4 apart there.
+        let wiggle = Product {
+            roots: vec![0.2, 0.3, 0.3001, 0.8],
+        };
+        let mut out = ArrayVec::new();
+        assert!(isolate_roots(&wiggle, 0.0, 1.0, &shaped, &mut out));
+        assert_both_find(&out, &out, &wiggle.roots, 601);
     }
 
     /// A function positive at both ends with a minimum a little above or below zero inside (a
