@@ -1617,29 +1617,7 @@ fn oracle_side_on_ellipses() {
     ] {
         let c = case(name);
         let o = Oracle::new(&c.spec, None);
-        let mut rng = Rng::new(seed);
-        let rays: Vec<_> = (0..1200)
-            .map(|k| {
-                let u = if k % 3 == 2 {
-                    let s = rng.range(0.0, 0.06);
-                    if rng.f64() < 0.5 { s } else { 1.0 - s }
-                } else {
-                    rng.range(0.02, 0.98)
-                };
-                let [t, n, b] = o.frame(u);
-                let target = o.world(o.axis(u)) + rng.ball() * (1.4 * o.rmax_at(u));
-                let a = rng.range(0.0, TAU);
-                let off = match k % 4 {
-                    0 => 0.0,
-                    1 => 10f64.powf(rng.range(-15.0, -3.0)),
-                    _ => 10f64.powf(rng.range(-3.0, -1.3)),
-                };
-                let tilt = off * if rng.f64() < 0.5 { 1.0 } else { -1.0 };
-                let dirn = (a.cos() * n + a.sin() * b + tilt * t).normalize();
-                let back = rng.range(0.3, 2.0) * o.size;
-                (Ray::new(target - back * dirn, dirn), 0.0, f64::INFINITY)
-            })
-            .collect();
+        let rays = side_on_rays(&o, seed, 1200);
         run_rays(
             &c,
             &o,
@@ -1647,4 +1625,52 @@ fn oracle_side_on_ellipses() {
             &[(Method::Auto, 1200), (Method::Radial, 1200)],
         );
     }
+}
+
+/// [`oracle_side_on_ellipses`]' rays on segments of strands, whose default frame is a
+/// projection frame: the branch method forms that frame's coordinates without unit vectors
+/// (`branches::Quadric::terms`), checked here against the projected oracle's frame.
+#[test]
+fn oracle_side_on_strand_ellipses() {
+    let cases = strand_cases();
+    for (index, seed) in [(0, 71), (1, 72), (3, 73)] {
+        let (c, r) = &cases[index];
+        let o = Oracle::new_projected(&c.spec, None, *r);
+        let cyl = c.spec.build_framed(Framing::Projected(*r)).unwrap();
+        let rays = side_on_rays(&o, seed, 600);
+        run_rays_on(
+            c,
+            &o,
+            &cyl,
+            &rays,
+            &[(Method::Auto, 600), (Method::Radial, 600)],
+        );
+    }
+}
+
+/// `n` rays side-on to the fiber of `o` (see [`oracle_side_on_ellipses`]).
+fn side_on_rays(o: &Oracle, seed: u64, n: usize) -> Vec<(Ray, f64, f64)> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|k| {
+            let u = if k % 3 == 2 {
+                let s = rng.range(0.0, 0.06);
+                if rng.f64() < 0.5 { s } else { 1.0 - s }
+            } else {
+                rng.range(0.02, 0.98)
+            };
+            let [t, n, b] = o.frame(u);
+            let target = o.world(o.axis(u)) + rng.ball() * (1.4 * o.rmax_at(u));
+            let a = rng.range(0.0, TAU);
+            let off = match k % 4 {
+                0 => 0.0,
+                1 => 10f64.powf(rng.range(-15.0, -3.0)),
+                _ => 10f64.powf(rng.range(-3.0, -1.3)),
+            };
+            let tilt = off * if rng.f64() < 0.5 { 1.0 } else { -1.0 };
+            let dirn = (a.cos() * n + a.sin() * b + tilt * t).normalize();
+            let back = rng.range(0.3, 2.0) * o.size;
+            (Ray::new(target - back * dirn, dirn), 0.0, f64::INFINITY)
+        })
+        .collect()
 }

@@ -39,6 +39,7 @@ use glam::{DVec2, DVec3};
 
 use super::SideRoots;
 use crate::cylinder::GeneralizedCylinder;
+use crate::frame::Framing;
 use crate::real::{Real, V2, V3};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS, isolate_roots};
 use crate::section::CrossSection;
@@ -46,7 +47,9 @@ use crate::sweep::SweepRule;
 
 /// The ray's quadric intersection and normal-plane terms at `u`: `(A, B, D, m, q)` of the module
 /// docs, for the ray `o' + w d` with `o'` the ray's point nearest `a(u.value())` (which keeps
-/// `B` and the cancellation in `D` small); `w` is then relative to `o'`.
+/// `B` and the cancellation in `D` small); `w` is then relative to `o'`. `A` and `B` may come
+/// multiplied by a positive `k(u)^2`, and `D` by `k^4` (a projection frame's, formed without unit
+/// vectors): the roots `w±`, the signs of `D` and so the branches are the same.
 struct Terms<T> {
     a: T,
     b: T,
@@ -83,16 +86,50 @@ impl<'a, C: CrossSection, S: SweepRule> Quadric<'a, C, S> {
         let dd = self.d;
         let m = d1.dot(e);
         let q = d1.dot_cst(dd);
-        let [t, n, bn] = self.cyl.frame_from_jet_r(u, d1, d2);
         let rule = &self.cyl.sweep;
-        let phi0 = rule.inverse(u, V2::new(n.dot(e), bn.dot(e)));
-        let phid = rule.inverse(u, V2::new(n.dot_cst(dd), bn.dot_cst(dd)));
-        let lambda =
-            T::cst(rule.scale_bound()[0]) + u.scale(rule.scale_bound()[1] - rule.scale_bound()[0]);
-        let (z0, zd) = (t.dot(e) / lambda, t.dot_cst(dd) / lambda);
+        // `z / lambda`, by the constant where `lambda` is one.
+        let [l0, l1] = rule.scale_bound();
+        let over_lambda = |z: T| {
+            if l0 == l1 {
+                z.div_cst(l0)
+            } else {
+                z / (T::cst(l0) + u.scale(l1 - l0))
+            }
+        };
+        // `(x, y, z)` coordinates of `e` and `d` in the frame, all times one positive `k`, and
+        // `k^2`: the quadric's coefficients are then `k^2` times the module docs' (its roots
+        // `w` the same, `D` times `k^4`).
+        let ([e_n, e_b, e_t], [d_n, d_b, d_t], k2) =
+            if let Framing::Projected(r) = self.cyl.framing() {
+                // Without unit vectors: with `a = a'` (at unit size), `C = a x r` and
+                // `N = C x a = |a|^2 r - (a.r) a`, the frame is `t = a/|a|`, `b = C/|C|`,
+                // `n = N/(|a| |C|)`; times `k = |a| |C|`, the coordinates are `N.e`, `|a| C.e` and
+                // `|C| a.e` (and so for `d`).
+                let a = d1.scale(self.cyl.speed_scale());
+                let c = a.cross_cst(*r);
+                let (aa, cc, ar) = (a.norm2(), c.norm2(), a.dot_cst(*r));
+                let (na, nc) = (aa.sqrt(), cc.sqrt());
+                let (ae, ad) = (a.dot(e), a.dot_cst(dd));
+                let (re, rd) = (e.dot_cst(*r), r.dot(dd));
+                (
+                    [aa * re - ar * ae, na * c.dot(e), nc * ae],
+                    [aa.scale(rd) - ar * ad, na * c.dot_cst(dd), nc * ad],
+                    aa * cc,
+                )
+            } else {
+                let [t, n, bn] = self.cyl.frame_from_jet_r(u, d1, d2);
+                (
+                    [n.dot(e), bn.dot(e), t.dot(e)],
+                    [n.dot_cst(dd), bn.dot_cst(dd), t.dot_cst(dd)],
+                    T::cst(1.0),
+                )
+            };
+        let phi0 = rule.inverse(u, V2::new(e_n, e_b));
+        let phid = rule.inverse(u, V2::new(d_n, d_b));
+        let (z0, zd) = (over_lambda(e_t), over_lambda(d_t));
         let a = phid.norm2() + zd.sqr();
         let b = phi0.dot(phid) + z0 * zd;
-        let c = phi0.norm2() + z0.sqr() - T::cst(1.0);
+        let c = phi0.norm2() + z0.sqr() - k2;
         Terms {
             a,
             b,
