@@ -1094,9 +1094,10 @@ impl Slopes {
     /// `c + s (u - centre)` takes its extremes over `[a, b]` at the ends, so where it stays
     /// beyond `rho` of 0 at both, with one sign, `|f'| >= min(|line(a)|, |line(b)|) - rho`;
     /// otherwise `min = 0`. Each end's line value is computed in `f64` and moved away from 0
-    /// by `4 eps (|c| + |s (u - centre)|)`, more than its three roundings can take; the two
-    /// subtractions from it round by half an ulp each, relative to their results, which
-    /// `1 - eps` takes back. Non-finite parts give `min = 0`.
+    /// by `4 eps (|c| + |s (u - centre)|)`: its three roundings take at most `1.5 eps` of that
+    /// sum, and the move's own rounding `0.5 eps` more. Taking `rho` away rounds by half an ulp
+    /// of the result, which `1 - eps` takes back (`rho` is at least `1e-300`, far above any
+    /// subnormal rounding). Non-finite parts give `min = 0`.
     #[inline]
     pub(crate) fn on(self, a: f64, b: f64) -> Slopes {
         let line = |u: f64| {
