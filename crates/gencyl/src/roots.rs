@@ -1096,8 +1096,9 @@ impl Slopes {
     /// otherwise `min = 0`. Each end's line value is computed in `f64` and moved away from 0
     /// by `4 eps (|c| + |s (u - centre)|)`: its three roundings take at most `1.5 eps` of that
     /// sum, and the move's own rounding `0.5 eps` more. Taking `rho` away rounds by half an ulp
-    /// of the result, which `1 - eps` takes back (`rho` is at least `1e-300`, far above any
-    /// subnormal rounding). Non-finite parts give `min = 0`.
+    /// of the result, which `1 - eps` takes back (`rho`, rounded up by
+    /// [`Taylor::slope_per_unit`], is at least the least subnormal, twice any rounding among
+    /// subnormals). Non-finite parts give `min = 0`.
     #[inline]
     pub(crate) fn on(self, a: f64, b: f64) -> Slopes {
         let line = |u: f64| {
