@@ -317,8 +317,9 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
                 })
                 .on(a, b);
             if slopes.min > 0.0 {
+                // An estimate in the cell, else the chord's zero.
                 let start = hints.guesses.into_iter().find(|&g| g > a && g < b);
-                let start = start.unwrap_or(0.5 * (a + b));
+                let start = start.unwrap_or(a + (b - a) * (fa / (fa - fb)));
                 if let Some(r) = bracketed_root_from(&value, (a, b, fa, fb), start, slopes) {
                     room &= push_root(out, r);
                 }
