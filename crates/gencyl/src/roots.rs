@@ -326,6 +326,17 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
                 continue;
             }
         }
+        // The middle of a U-shaped interval (`f < 0` at both ends), where that model is at hand:
+        // `f` falls, then rises, and stays below zero between.
+        if fa < 0.0
+            && fb < 0.0
+            && let (Some(shape), Some(slopes)) = (hints.shape, whole)
+            && shape.lo <= a
+            && b <= shape.hi
+            && slopes.keeps_negative((a, b, fa, fb))
+        {
+            continue;
+        }
         // The whole interval, where the samples dipped: the pair at once.
         let dips = hints.dips && evaluations == 1;
         // `u = m + h t`, `t` in `[-1, 1]`: the models' slopes are in `t`.
@@ -1122,6 +1133,43 @@ impl Slopes {
         };
         Slopes { min, ..self }
     }
+
+    /// Whether `f < 0` on `[a, b]`, part of the model's domain, given `f(a) < 0` and `f(b) < 0`
+    /// (the middle of a U). Where the model proves `f` monotone there, `f` lies between those
+    /// values. Otherwise, with `x1`, `x2` where the line is `-2 rho` and `2 rho` (its zero `z`
+    /// between them), the line's values (moved by their rounding, as in [`Slopes::on`]) must
+    /// show `f' < 0` on `[a, x1]` and `f' > 0` on `[x2, b]`: then `f <= f(a)` on `[a, x1]` and
+    /// `f <= f(b)` on `[x2, b]`, and between them too. On `[x1, z]`, with `v = u - z`,
+    /// `f(u) - f(x1) <= int (line + rho) = v (s v / 2 + rho) <= 0` (`-2 rho / s <= v <= 0`);
+    /// on `[z, x2]`, `f(u) - f(x2) <= -int_u^x2 (line - rho) = -v (rho - s v / 2) <= 0`. So
+    /// `f <= max(f(a), f(b)) < 0`. The values at `a` and `b` are taken as computed, as the
+    /// signs at cells' ends are everywhere.
+    pub(crate) fn keeps_negative(self, (a, b, fa, fb): Cell) -> bool {
+        if !(fa < 0.0 && fb < 0.0) {
+            return false;
+        }
+        // Monotone: between its ends' values.
+        if self.on(a, b).min > 0.0 {
+            return true;
+        }
+        if !(self.s > 0.0) {
+            return false;
+        }
+        let x1 = self.centre + (-2.0 * self.rho - self.c) / self.s;
+        let x2 = self.centre + (2.0 * self.rho - self.c) / self.s;
+        if !(a < x1 && x1 <= x2 && x2 < b) {
+            return false;
+        }
+        let line = |u: f64| {
+            let k = self.s * (u - self.centre);
+            (self.c + k, 4.0 * f64::EPSILON * (self.c.abs() + k.abs()))
+        };
+        let [(la, ea), (l1, e1), (l2, e2), (lb, eb)] = [a, x1, x2, b].map(line);
+        let falling = fmax(la + ea, l1 + e1) + self.rho;
+        let rising = fmin(l2 - e2, lb - eb) - self.rho;
+        // NaN fails both comparisons.
+        falling < 0.0 && rising > 0.0
+    }
 }
 
 /// [`bracketed_root`] with the first iterate `x0` (the midpoint if `x0` is not inside) and what
@@ -1685,6 +1733,176 @@ mod tests {
         assert!(
             away > 1000 && 10 * proved >= 9 * away,
             "{proved} of {away} parts away from f' = 0 proved monotone"
+        );
+    }
+
+    /// `Slopes::keeps_negative` rules out the middle of a U only where `f < 0` throughout it:
+    /// U's `(u - r0) (u - r1) (1 + k u)` with a ripple `A sin(w u)` (from none to one that
+    /// lifts the bottom above zero in places, `w` from 5 to 200) or a narrow bump at the
+    /// bottom that rises above zero (which only the bound across the zero of `f'` sees), models over an interval 1.1 to 2
+    /// times the roots' gap about them, middles of a hundredth of the gap to nearly all of it,
+    /// both ends negative: wherever it says so, `f` sampled at 201 points of the middle is
+    /// negative; and it says so for most middles of the smooth U's placed as a U's cuts place
+    /// them (about the bottom, a third to a half of the gap wide).
+    #[test]
+    fn middles_kept_negative_are_negative() {
+        struct Rippled {
+            roots: [f64; 2],
+            k: f64,
+            amp: f64,
+            freq: f64,
+            /// A bump `height / (1 + ((u - at) / width)^2)`.
+            bump: [f64; 3],
+        }
+        impl Function1D for Rippled {
+            fn eval<T: Real>(&self, u: T) -> T {
+                let [r0, r1] = self.roots;
+                let ripple = u.scale(self.freq).sin().scale(self.amp);
+                let u_shape =
+                    (u - T::cst(r0)) * (u - T::cst(r1)) * (T::cst(1.0) + u.scale(self.k)) + ripple;
+                let [height, at, width] = self.bump;
+                if height == 0.0 {
+                    return u_shape;
+                }
+                let z = (u - T::cst(at)).scale(1.0 / width);
+                u_shape + T::cst(height) / (T::cst(1.0) + z.sqr())
+            }
+        }
+        let mut rng = crate::test_rng::Lcg(131);
+        let (mut smooth, mut smooth_kept, mut kept, mut checked) = (0, 0, 0, 0);
+        for case in 0..3000 {
+            let (r0, r1) = (rng.range(0.05, 0.45), rng.range(0.55, 0.95));
+            let depth = 0.25 * (r1 - r0) * (r1 - r0);
+            let (amp, bump) = match case % 4 {
+                0 => (0.0, 0.0),
+                1 => (depth * 10f64.powf(rng.range(-4.0, -1.0)), 0.0),
+                2 => (depth * rng.range(0.5, 2.0), 0.0),
+                _ => (0.0, depth * rng.range(1.1, 3.0)),
+            };
+            let gap = r1 - r0;
+            let f = Rippled {
+                roots: [r0, r1],
+                k: rng.range(-0.1, 0.1),
+                amp,
+                freq: 10f64.powf(rng.range(0.7, 2.3)),
+                bump: [
+                    bump,
+                    0.5 * (r0 + r1) + rng.range(-0.1, 0.1) * gap,
+                    gap * 10f64.powf(rng.range(-2.3, -1.0)),
+                ],
+            };
+            // The U's interval reaches a little beyond its roots (as a tube's window does).
+            let (lo, hi) = (
+                r0 - rng.range(0.05, 0.5) * gap,
+                r1 + rng.range(0.05, 0.5) * gap,
+            );
+            let var = Taylor::var(lo, hi);
+            let Dual { d: slope, .. } = f.eval(Dual::var(var));
+            let slopes = Slopes::of(var.c, var.s, slope);
+            let width = if case % 2 == 0 {
+                gap * rng.range(0.3, 0.6)
+            } else {
+                gap * 10f64.powf(rng.range(-2.0, -0.1))
+            };
+            // Half about the bottom (where a U's middle is cut), half anywhere between the roots.
+            let spread = if case % 2 == 0 { 0.05 } else { 0.3 };
+            let mid = 0.5 * (r0 + r1) + rng.range(-spread, spread) * gap;
+            let (a, b) = (mid - 0.5 * width, mid + 0.5 * width);
+            let (fa, fb) = (f.eval(a), f.eval(b));
+            if !(fa < 0.0 && fb < 0.0 && a > lo && b < hi) {
+                continue;
+            }
+            let says = slopes.keeps_negative((a, b, fa, fb));
+            // A smooth U's middle as its cuts place it: about the bottom, a third to a half of
+            // the gap.
+            if amp == 0.0 && bump == 0.0 && case % 2 == 0 {
+                smooth += 1;
+                smooth_kept += usize::from(says);
+            }
+            if says {
+                kept += 1;
+                for j in 0..=200 {
+                    let x = a + (b - a) * j as f64 / 200.0;
+                    assert!(
+                        f.eval(x) < 0.0,
+                        "case {case}: f({x}) = {} on [{a}, {b}], kept negative",
+                        f.eval(x)
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(
+            smooth > 200 && 10 * smooth_kept >= 9 * smooth,
+            "{smooth_kept} of {smooth} smooth middles kept"
+        );
+        assert!(
+            kept > 800 && checked > 160_000,
+            "{kept} kept, {checked} samples"
+        );
+    }
+
+    /// `Slopes::keeps_negative` against the highest function its model allows: where `f'` lies
+    /// in `c + s (u - centre) + [-rho, rho]` and `f(a)`, `f(b)` are given, `f(u)` is at most
+    /// `min(f(a) + int_a^u (line + rho), f(b) - int_u^b (line - rho))`, and some such `f`
+    /// reaches it. For random models and cells (about the line's zero, just beyond the zone
+    /// where it is within `2 rho` of zero, or anywhere; ends from far below zero to just below
+    /// it), wherever the method says `f < 0`, that highest value,
+    /// sampled at 401 points, is negative; and it says so for some cells in every family.
+    #[test]
+    fn keeps_negative_holds_for_the_worst_slopes_the_model_allows() {
+        let mut rng = crate::test_rng::Lcg(137);
+        let (mut said, mut about_zero) = (0, 0);
+        for case in 0..20_000 {
+            let centre = rng.range(-1.0, 1.0);
+            let s = 10f64.powf(rng.range(-2.0, 2.0));
+            let c = s * rng.range(-0.5, 0.5);
+            let rho = s * 10f64.powf(rng.range(-6.0, -0.5));
+            let slopes = Slopes {
+                centre,
+                c,
+                s,
+                rho,
+                min: 0.0,
+            };
+            let zero = centre - c / s;
+            let zone = 2.0 * rho / s;
+            let (a, b) = match case % 3 {
+                0 => (zero - rng.range(0.0, 0.5), zero + rng.range(0.0, 0.5)),
+                // Just beyond the zone where the line is within `2 rho` of zero.
+                1 => (
+                    zero - zone * rng.range(1.0, 1.5),
+                    zero + zone * rng.range(1.0, 1.5),
+                ),
+                _ => {
+                    let a = rng.range(centre - 1.0, centre + 1.0);
+                    (a, a + rng.range(1e-6, 0.5))
+                }
+            };
+            let scale = s * (b - a) * (b - a);
+            let fa = -scale * 10f64.powf(rng.range(-8.0, 0.0));
+            let fb = -scale * 10f64.powf(rng.range(-8.0, 0.0));
+            if !slopes.keeps_negative((a, b, fa, fb)) {
+                continue;
+            }
+            said += 1;
+            about_zero += usize::from(a < zero && zero < b);
+            let integral = |x: f64, y: f64, k: f64| {
+                c * (y - x) + 0.5 * s * ((y - centre).powi(2) - (x - centre).powi(2)) + k * (y - x)
+            };
+            for j in 0..=400 {
+                let u = a + (b - a) * j as f64 / 400.0;
+                let highest = (fa + integral(a, u, rho)).min(fb - integral(u, b, -rho));
+                let slack = 1e-12 * (fa.abs() + fb.abs() + scale);
+                assert!(
+                    highest < slack,
+                    "case {case}: f can reach {highest} at {u} in [{a}, {b}] ({fa}, {fb}), {slopes:?}"
+                );
+            }
+        }
+        assert!(
+            said > 2000 && about_zero > 1000,
+            "{said} kept negative, {about_zero} about the line's zero"
         );
     }
 
