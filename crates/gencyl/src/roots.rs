@@ -426,8 +426,8 @@ pub(crate) fn isolate_in_cells<F: Function1D>(
 /// negative at `x` between them. Its cells are the entry's side `[lo, p]`, the middle and the
 /// exit's side `[q, hi]` (`p <= x <= q`, where `f` is negative too). Across a fiber `f'` is
 /// close to linear on such an interval, and one model of `f'` over all of it usually proves
-/// both sides monotone ([`Slopes::on`]): one pair of models where each side took its own (the
-/// middle keeps its model of `f` alone).
+/// both sides monotone ([`Slopes::on`]) and the middle below zero ([`Slopes::keeps_negative`]):
+/// one pair of models where each side took its own and the middle a model of `f`.
 ///
 /// Each side decides from its own samples whether to ask for that model, so a query that
 /// isolates one side (the nearest crossing, [`PendingCut`]) and one that isolates both take
@@ -1910,10 +1910,10 @@ mod tests {
     /// the exit's side), one model of `f'` over the whole interval proves both sides monotone:
     /// U's close to a parabola (as `g` is across a fiber: a bend `1 + k u`, `|k| <= 0.03`, and a
     /// wobble of at most 0.003) with two roots (far apart; near the ends; 2e-9 to 0.2 apart in a
-    /// window 1.5 to 4 times as wide) mostly (540 of 600) take that one pair of models and the
-    /// middle's model of `f` alone, and find both roots to 1e-13. A W (a side with three roots, where no model can prove that
-    /// side monotone) and a U whose side holds a wiggle still give every root: the sides fall
-    /// back to their own models.
+    /// window 1.5 to 4 times as wide) mostly (540 of 600) take that one pair of models (which
+    /// rules out the middle too, [`Slopes::keeps_negative`]), and find both roots to 1e-13. A
+    /// W (a side with three roots, where no model can prove that side monotone) and a U whose
+    /// side holds a wiggle still give every root: the sides fall back to their own models.
     #[test]
     fn one_slope_model_takes_both_sides_of_a_u() {
         /// `(u - r0) (u - r1) (1 + k u + w sin(5 u))`.
