@@ -95,7 +95,8 @@ impl Default for IsolateOptions {
 /// then monotone and a narrow middle where `f` keeps one sign, three cells where halving would
 /// take five to seven. Otherwise it is halved. With [`IsolateOptions::u_shaped`] the first
 /// cells may come from point values instead (`u_shaped_cells`), and Newton's method then
-/// starts in a monotone cell from the parabola's estimate of its root where it has one. A cell
+/// starts in a monotone cell from the parabola's estimate of its root where it has one; the
+/// cells of such a U may share one model of `f'` over all of it (`UShape`). A cell
 /// with one sign at both ends is first enclosed by the model of `f` alone (a third of the
 /// work), which is the pair's value part to the bit: where it excludes zero the cell is done,
 /// as the pair would have decided. Where neither decides such a cell and the model of `f'`
