@@ -47,9 +47,10 @@ use crate::sweep::SweepRule;
 
 /// The ray's quadric intersection and normal-plane terms at `u`: `(A, B, D, m, q)` of the module
 /// docs, for the ray `o' + w d` with `o'` the ray's point nearest `a(u.value())` (which keeps
-/// `B` and the cancellation in `D` small); `w` is then relative to `o'`. `A` and `B` may come
-/// multiplied by a positive `k(u)^2`, and `D` by `k^4` (a projection frame's, formed without unit
-/// vectors): the roots `w±`, the signs of `D` and so the branches are the same.
+/// `B` and the cancellation in `D` small); `w` is then relative to `o'`. The quadric's `A`, `B`
+/// and `C` may come multiplied by a positive `k(u)^2`, and so `D` by `k^4` (a projection frame's,
+/// formed without unit vectors): the roots `w±`, the signs of `D` and so the branches are the
+/// same.
 struct Terms<T> {
     a: T,
     b: T,
