@@ -1103,6 +1103,14 @@ impl Slopes {
         }
     }
 
+    /// The model's line `c + s (u - centre)` at `u`, computed in `f64`, and a bound of its
+    /// rounding, `4 eps (|c| + |s (u - centre)|)` (see [`Slopes::on`]).
+    #[inline]
+    fn line(self, u: f64) -> (f64, f64) {
+        let k = self.s * (u - self.centre);
+        (self.c + k, 4.0 * f64::EPSILON * (self.c.abs() + k.abs()))
+    }
+
     /// The same model on `[a, b]`, part of its domain, with `min` bounded there: the line
     /// `c + s (u - centre)` takes its extremes over `[a, b]` at the ends, so where it stays
     /// beyond `rho` of 0 at both, with one sign, `|f'| >= min(|line(a)|, |line(b)|) - rho`;
@@ -1114,11 +1122,7 @@ impl Slopes {
     /// subnormals). Non-finite parts give `min = 0`.
     #[inline]
     pub(crate) fn on(self, a: f64, b: f64) -> Slopes {
-        let line = |u: f64| {
-            let k = self.s * (u - self.centre);
-            (self.c + k, 4.0 * f64::EPSILON * (self.c.abs() + k.abs()))
-        };
-        let ((la, ea), (lb, eb)) = (line(a), line(b));
+        let ((la, ea), (lb, eb)) = (self.line(a), self.line(b));
         // NaN or infinite parts bound nothing.
         if !(la + lb + ea + eb + self.rho).is_finite() {
             return Slopes { min: 0.0, ..self };
@@ -1161,11 +1165,7 @@ impl Slopes {
         if !(a < x1 && x1 <= x2 && x2 < b) {
             return false;
         }
-        let line = |u: f64| {
-            let k = self.s * (u - self.centre);
-            (self.c + k, 4.0 * f64::EPSILON * (self.c.abs() + k.abs()))
-        };
-        let [(la, ea), (l1, e1), (l2, e2), (lb, eb)] = [a, x1, x2, b].map(line);
+        let [(la, ea), (l1, e1), (l2, e2), (lb, eb)] = [a, x1, x2, b].map(|u| self.line(u));
         let falling = fmax(la + ea, l1 + e1) + self.rho;
         let rising = fmin(l2 - e2, lb - eb) - self.rho;
         // NaN fails both comparisons.
