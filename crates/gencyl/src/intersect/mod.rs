@@ -39,7 +39,7 @@ use glam::{DVec2, DVec3};
 use crate::bernstein::Bernstein;
 use crate::cylinder::{Aabb, GeneralizedCylinder, Hit, Part, Ray, times_power_of_two, v2};
 use crate::frame::{Framing, frame_with};
-use crate::real::{Real, V2};
+use crate::real::{Dual, Real, V2};
 use crate::roots::{Function1D, IsolateOptions, MAX_ROOTS};
 use crate::section::CrossSection;
 use crate::sweep::SweepRule;
@@ -1223,10 +1223,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     /// `delta = -g(u)/g'(u)`, below `u`'s resolution once the root is isolated, is taken in
     /// `w` instead: `w(u) + w'(u) delta`, when `|delta|` is within a few ulps of `u` (larger
     /// steps mean a root Newton's method does not yet resolve, a tangent one: `w(u)` stays).
-    fn refined_w(&self, o: DVec3, d: DVec3, u: f64) -> f64 {
-        use crate::real::Dual;
+    /// `g` is [`Radial`]'s function (`R = 1`) at `Dual::var(u)`, or a positive multiple `k g`
+    /// of it (whose step at a root is `g`'s times `1 + O(g k' / (k g'))`, far below the ulp
+    /// of `u` that bounds the steps taken).
+    fn refined_w(&self, o: DVec3, d: DVec3, u: f64, g: Dual<f64>) -> f64 {
         let w = self.plane_w_r(o, d, Dual::var(u));
-        let g = self.radial_g_r(o, d, Dual::var(u), 1.0);
         let delta = -g.v / g.d;
         let resolution = 4.0 * f64::EPSILON * u.abs().max(f64::MIN_POSITIVE);
         let refined = w.v + w.d * delta;
@@ -1239,11 +1240,14 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 
     /// Records the root at `u` of a unit-circle section, with `v` the angle of `phi(u)` (from
     /// its homogeneous coordinates, [`Self::homogeneous_phi_r`]: no unit frame is formed).
+    /// One evaluation of those coordinates with their derivatives gives both `phi` and, for
+    /// [`Self::refined_w`], `lambda^2 q^2 (|phi|^2 - 1) = lambda^2 g`, a positive multiple of
+    /// [`Radial`]'s `g` (`lambda = 1` at `u`).
     pub(crate) fn push_circle_root(&self, o: DVec3, d: DVec3, u: f64, out: &mut SideRoots) {
-        let (qphi, q) = self.homogeneous_phi_r(o, d, u);
-        let w = self.refined_w(o, d, u);
+        let (qphi, q) = self.homogeneous_phi_r(o, d, Dual::var(u));
+        let w = self.refined_w(o, d, u, qphi.norm2() - q.sqr());
         if w.is_finite() {
-            let v = crate::section::angle(DVec2::new(qphi.x / q, qphi.y / q));
+            let v = crate::section::angle(DVec2::new(qphi.x.v / q.v, qphi.y.v / q.v));
             push_side_root(out, SideRoot { u, w, v });
         }
     }
@@ -1364,7 +1368,7 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
 mod tests {
     use super::*;
     use crate::cylinder::FiberSpec;
-    use crate::real::{Dual, Interval, Taylor};
+    use crate::real::{Interval, Taylor};
     use crate::roots::isolate_roots_reference;
     use crate::section::Section;
     use crate::sweep::HairSweep;
@@ -1496,6 +1500,86 @@ mod tests {
             reference.extend(us);
         }
         (fast, reference)
+    }
+
+    /// Side-on rays (1.5e-3 to 0.1 rad off perpendicular, log-uniform) through a straight
+    /// elliptical fiber (radii `2^-6` and `2^-7`, so the ellipse's equation is exact in binary)
+    /// get `t` to a few ulps: against the roots of the ellipse's quadratic in `t`, polished by
+    /// Newton's method on the equation in double-double arithmetic. Seen side-on, an ulp of
+    /// the root's `u` moves the hit along the ray by `|w'| ulp(u)`, up to 1e3 ulps of `t` here:
+    /// the root's last Newton step must be taken in `w` ([`GeneralizedCylinder::refined_w`]).
+    /// With that step left out, errors of over a hundred ulps appear, and this test fails.
+    #[test]
+    fn side_on_elliptical_hits_have_t_to_a_few_ulps() {
+        use crate::test_rng::Dd;
+        let (a, b) = (0.015625, 0.0078125);
+        let spec = FiberSpec {
+            bezier: [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0].map(|x| v3(x, 0.0, 0.0)),
+            major_radius: [a, a],
+            minor_radius: [b, b],
+            rotation: [0.0, 0.0],
+            caps: false,
+            normal_hint: Some(DVec3::Y),
+            section: Section::default(),
+        };
+        let cyl = spec.build().unwrap();
+        let f = cyl.frame(0.5);
+        assert!(f.n == DVec3::Y && f.b == DVec3::Z, "{f:?}");
+        // `(y/a)^2 + (z/b)^2 - 1` along the ray, in double-double.
+        let ellipse = |o: DVec3, d: DVec3, t: f64| {
+            let y = Dd::of(o.y).add(Dd::of(t).mul(Dd::of(d.y)));
+            let z = Dd::of(o.z).add(Dd::of(t).mul(Dd::of(d.z)));
+            let (ka, kb) = (Dd::of(1.0 / (a * a)), Dd::of(1.0 / (b * b)));
+            y.mul(y)
+                .mul(ka)
+                .add(z.mul(z).mul(kb))
+                .add(Dd::of(-1.0))
+                .value()
+        };
+        let mut rng = Rng(71);
+        let (mut worst, mut hits) = (0.0f64, 0);
+        for _ in 0..2000 {
+            let x0 = rng.range(0.2, 0.8);
+            let alpha = 10f64.powf(rng.range(-2.82, -1.0));
+            let psi = rng.range(0.0, std::f64::consts::TAU);
+            let dist = rng.range(0.5, 2.0);
+            // Aimed at a point inside the ellipse.
+            let (r, phi) = (
+                rng.range(0.0, 0.9).sqrt(),
+                rng.range(0.0, std::f64::consts::TAU),
+            );
+            let target = v3(x0, a * r * phi.cos(), b * r * phi.sin());
+            let across = v3(0.0, psi.cos(), psi.sin());
+            let sign = if rng.next() < 0.5 { -1.0 } else { 1.0 };
+            let d = v3(sign * alpha.sin(), 0.0, 0.0) + alpha.cos() * -across;
+            let o = target - dist * d;
+            let mut all = Vec::new();
+            cyl.intersect_all(&Ray::new(o, d), 0.0, f64::INFINITY, &mut all);
+            // The quadratic's roots, polished.
+            let qa = (d.y / a).powi(2) + (d.z / b).powi(2);
+            let qb = 2.0 * (o.y * d.y / (a * a) + o.z * d.z / (b * b));
+            let qc = (o.y / a).powi(2) + (o.z / b).powi(2) - 1.0;
+            let roots = crate::roots::quadratic_roots(qa, qb, qc);
+            assert_eq!(all.len(), 2, "ray {o} {d}: {all:?}");
+            for (h, &t0) in all.iter().zip(&roots) {
+                let mut t = t0;
+                for _ in 0..3 {
+                    let slope =
+                        2.0 * ((o.y + t * d.y) * d.y / (a * a) + (o.z + t * d.z) * d.z / (b * b));
+                    t -= ellipse(o, d, t) / slope;
+                }
+                let ulps = (h.t - t).abs() / (f64::EPSILON * t.abs());
+                worst = worst.max(ulps);
+                hits += 1;
+                assert!(
+                    ulps <= 8.0,
+                    "ray {o} {d}: t {} against {t} ({ulps} ulps)",
+                    h.t
+                );
+            }
+        }
+        eprintln!("{hits} hits, worst {worst:.2} ulps of t");
+        assert_eq!(hits, 4000);
     }
 
     /// `radial_g_r` against the frame formula it replaced, in `f64` and `Dual<f64>`, including
