@@ -9,7 +9,7 @@ use crate::frame::{
     FRENET_DEGENERATE, Frame, FrameAt, Framing, PROJECTION_MIN_SINE, STRAIGHT_TOLERANCE, frame_r,
     frenet_shift, frenet_switches, projected_frame,
 };
-use crate::real::{Dual, Interval, Real, V2, V3};
+use crate::real::{Interval, Real, V2, V3};
 use crate::section::{CrossSection, Section};
 use crate::sweep::{HairSweep, SweepRule};
 
@@ -796,15 +796,10 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
     fn swept_normal(&self, u: f64, v: f64) -> DVec3 {
         let (Frame { t: _, n, b }, [_, dn, db]) =
             FrameAt::frame_and_rates(&self.axis, &self.framing, u);
-        let p = self.section.point(v);
-        let dp = self.section.derivative(v);
-        // c and dc/du: the rule differentiated in u with the section point held fixed.
-        let cu = self.sweep.apply(Dual::var(u), V2::cst(p));
-        // dc/dv: the rule differentiated along the section's tangent.
-        let cv = self.sweep.apply(
-            Dual::cst(u),
-            V2::new(Dual { v: p.x, d: dp.x }, Dual { v: p.y, d: dp.y }),
-        );
+        let (p, dp) = self.section.point_and_derivative(v);
+        // c and dc/du: the rule differentiated in u with the section point held fixed; dc/dv:
+        // the rule differentiated along the section's tangent.
+        let (cu, cv) = self.sweep.apply_with_tangent(u, p, dp);
         let gu = self.axis.d1(u) + cu.x.d * n + cu.x.v * dn + cu.y.d * b + cu.y.v * db;
         let gv = cv.x.d * n + cv.y.d * b;
         let orient = self.section.orientation() * self.sweep.orientation();
@@ -1257,6 +1252,7 @@ pub(crate) fn v2(p: V2<f64>) -> DVec2 {
 mod tests {
     use super::*;
     use crate::intersect::U_MARGIN;
+    use crate::real::Dual;
 
     /// The Radial function's models over a cell (`Dual<Taylor>`: `g` and `g'`, the function
     /// the elliptical fibers' roots are isolated on) hold `g` and `g'` at 201 points of the

@@ -1,6 +1,8 @@
 //! Invertible sweeping rules `s(p, u)`: how the cross section is transformed at each `u`.
 
-use crate::real::{Real, V2};
+use glam::DVec2;
+
+use crate::real::{Dual, Real, V2};
 
 /// An invertible sweeping rule: a map of the section plane at each `u in [0, 1]`, with its
 /// inverse. Written over [`Real`] so the intersector can evaluate it with values, derivatives
@@ -10,6 +12,17 @@ pub trait SweepRule {
     fn apply<T: Real>(&self, u: T, p: V2<T>) -> V2<T>;
     /// `s^-1(q, u)`: `(n, b)` coordinates to section coordinates.
     fn inverse<T: Real>(&self, u: T, q: V2<T>) -> V2<T>;
+    /// `s(p, u)` with its derivative in `u` (`p` held), and with its derivative along the
+    /// section's tangent `dp` (`u` held): the surface's two partial derivatives' parts from
+    /// the rule, for its normal.
+    fn apply_with_tangent(&self, u: f64, p: DVec2, dp: DVec2) -> (V2<Dual<f64>>, V2<Dual<f64>>) {
+        let along_u = self.apply(Dual::var(u), V2::cst(p));
+        let along_v = self.apply(
+            Dual::cst(u),
+            V2::new(Dual { v: p.x, d: dp.x }, Dual { v: p.y, d: dp.y }),
+        );
+        (along_u, along_v)
+    }
     /// A linear upper bound `[L0, L1]` of the rule's stretch: `|s(p, u)| <= (L0 + (L1 - L0) u) |p|`
     /// for `u in [0, 1]`. Bounds boxes and the frame-free prefilter of the intersector.
     fn scale_bound(&self) -> [f64; 2];
@@ -114,6 +127,25 @@ impl SweepRule for HairSweep {
     fn inverse<T: Real>(&self, u: T, q: V2<T>) -> V2<T> {
         let (x, y) = self.angle(u).rotate_back(q.x, q.y);
         V2::new(Self::over(self.major, u, x), Self::over(self.minor, u, y))
+    }
+
+    /// The two [`SweepRule::apply`]s of the default, sharing one sine and cosine of the
+    /// rotation (the second's are constants: its `u` is).
+    fn apply_with_tangent(&self, u: f64, p: DVec2, dp: DVec2) -> (V2<Dual<f64>>, V2<Dual<f64>>) {
+        let (s, c) = self.angle(Dual::var(u)).sin_cos();
+        let rotate = |(s, c): (Dual<f64>, Dual<f64>), x: Dual<f64>, y: Dual<f64>| {
+            V2::new(c * x - s * y, s * x + c * y)
+        };
+        let stretch =
+            |u: Dual<f64>, p: V2<Dual<f64>>| (p.x * self.major_at(u), p.y * self.minor_at(u));
+        let (x, y) = stretch(Dual::var(u), V2::cst(p));
+        let along_u = rotate((s, c), x, y);
+        let (x, y) = stretch(
+            Dual::cst(u),
+            V2::new(Dual { v: p.x, d: dp.x }, Dual { v: p.y, d: dp.y }),
+        );
+        let along_v = rotate((Dual::cst(s.v), Dual::cst(c.v)), x, y);
+        (along_u, along_v)
     }
 
     /// The stretch of `R diag(A, B)` is `max(A(u), B(u))`, a convex function of `u` (the maximum

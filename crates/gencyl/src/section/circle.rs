@@ -18,6 +18,10 @@ impl CrossSection for UnitCircle {
         let (s, c) = crate::real::sin_cos(v);
         DVec2::new(-s, c)
     }
+    fn point_and_derivative(&self, v: f64) -> (DVec2, DVec2) {
+        let (s, c) = crate::real::sin_cos(v);
+        (DVec2::new(c, s), DVec2::new(-s, c))
+    }
     fn point_r<T: Real>(&self, v: T) -> V2<T> {
         let (s, c) = v.sin_cos();
         V2::new(c, s)

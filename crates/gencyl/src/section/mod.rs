@@ -26,6 +26,11 @@ pub trait CrossSection {
     fn point(&self, v: f64) -> DVec2;
     /// `d cs / d v`.
     fn derivative(&self, v: f64) -> DVec2;
+    /// [`Self::point`] and [`Self::derivative`] at once (the circle's share one sine and
+    /// cosine).
+    fn point_and_derivative(&self, v: f64) -> (DVec2, DVec2) {
+        (self.point(v), self.derivative(v))
+    }
     /// `cs(v)` over any [`Real`], for `v` within the smooth piece of the curve that holds
     /// `v.value()`: an enclosure over a range of `v` holds the curve only if the range stays in
     /// that piece, as the ranges between [`CrossSection::monotone_breaks`] do.
@@ -84,6 +89,9 @@ impl CrossSection for Section {
     }
     fn derivative(&self, v: f64) -> DVec2 {
         forward!(self, s => s.derivative(v))
+    }
+    fn point_and_derivative(&self, v: f64) -> (DVec2, DVec2) {
+        forward!(self, s => s.point_and_derivative(v))
     }
     fn point_r<T: Real>(&self, v: T) -> V2<T> {
         forward!(self, s => s.point_r(v))
