@@ -715,6 +715,25 @@ struct RootCell {
 }
 
 impl RootCell {
+    /// Where a search of the cell starts: `start` where it lies inside, else the secant point
+    /// of the end values.
+    fn start_or_secant(&self) -> f64 {
+        if self.start > self.s0 && self.start < self.s1 {
+            self.start
+        } else {
+            self.s0 + (self.s1 - self.s0) * (self.fa / (self.fa - self.fb))
+        }
+    }
+
+    /// Whether the branch's values at `lo` and `hi` (`h`'s; the cell's end values where they
+    /// reach past its ends) have the signs of the cell's ends, so that the cell's one root lies
+    /// between them; `None` where `h` gives no value (its sign is not certain).
+    fn brackets(&self, (lo, hi): (f64, f64), h: impl Fn(f64) -> Option<f64>) -> Option<bool> {
+        let f_lo = if lo <= self.s0 { self.fa } else { h(lo)? };
+        let f_hi = if hi >= self.s1 { self.fb } else { h(hi)? };
+        Some(f_lo * self.fa > 0.0 && f_hi * self.fb > 0.0)
+    }
+
     /// The root cell of `[s0, s1]`, where `G` has exactly one root; `g_rises` when `G < 0` at
     /// `s0` (its end values' signs are certified). `None` where a narrower cell is needed.
     ///
@@ -1262,24 +1281,13 @@ const WINDOW_BRACKET: f64 = 1.0 / 32.0;
 /// it (the start is farther off, or the bracket's ends are within the rounding of `H`'s root:
 /// on a short range, where `H`'s rounding, relative to the coordinates, is wide in `s`).
 fn window_bracket(k: &Polys, rounding: [f64; 3], cell: &RootCell) -> Option<(f64, f64)> {
-    let s = if cell.start > cell.s0 && cell.start < cell.s1 {
-        cell.start
-    } else {
-        cell.s0 + (cell.s1 - cell.s0) * (cell.fa / (cell.fa - cell.fb))
-    };
+    let s = cell.start_or_secant();
     let half = WINDOW_BRACKET * (s - cell.s0).min(cell.s1 - s);
     let (lo, hi) = (s - half, s + half);
-    let f_lo = if lo <= cell.s0 {
-        cell.fa
-    } else {
-        branch_beyond_rounding(k, rounding, lo, cell.sign)?
-    };
-    let f_hi = if hi >= cell.s1 {
-        cell.fb
-    } else {
-        branch_beyond_rounding(k, rounding, hi, cell.sign)?
-    };
-    (f_lo * cell.fa > 0.0 && f_hi * cell.fb > 0.0).then_some((lo.max(cell.s0), hi.min(cell.s1)))
+    let bracketed = cell.brackets((lo, hi), |x| {
+        branch_beyond_rounding(k, rounding, x, cell.sign)
+    })?;
+    bracketed.then_some((lo.max(cell.s0), hi.min(cell.s1)))
 }
 
 /// The rounding bounds of `D`, `P` and `Z'` at points inside the range: the polynomials'
@@ -1383,11 +1391,7 @@ fn solved_in_space<C: CrossSection, S: SweepRule>(
     (u0, u1): (f64, f64),
     cell: &RootCell,
 ) -> Option<(f64, f64)> {
-    let s = if cell.start > cell.s0 && cell.start < cell.s1 {
-        cell.start
-    } else {
-        cell.s0 + (cell.s1 - cell.s0) * (cell.fa / (cell.fa - cell.fb))
-    };
+    let s = cell.start_or_secant();
     let u = u0 + (u1 - u0) * s;
     space_crossing_from(cyl, (o, d), k, (u0, u1), cell, (u, None))
 }
@@ -1467,18 +1471,8 @@ fn space_crossing_from<C: CrossSection, S: SweepRule>(
     if !(s >= cell.s0 && s <= cell.s1) {
         return None;
     }
-    let (lo, hi) = (s - SPACE_BRACKET, s + SPACE_BRACKET);
-    let f_lo = if lo <= cell.s0 {
-        cell.fa
-    } else {
-        k.h(lo, cell.sign)
-    };
-    let f_hi = if hi >= cell.s1 {
-        cell.fb
-    } else {
-        k.h(hi, cell.sign)
-    };
-    let bracketed = f_lo * cell.fa > 0.0 && f_hi * cell.fb > 0.0;
+    let bracket = (s - SPACE_BRACKET, s + SPACE_BRACKET);
+    let bracketed = cell.brackets(bracket, |x| Some(k.h(x, cell.sign)))?;
     bracketed.then_some((u, w))
 }
 
