@@ -708,6 +708,11 @@ impl<C: CrossSection, S: SweepRule> GeneralizedCylinder<C, S> {
             .filter(move |&s| s > a && s < b)
     }
 
+    /// The frame's unit tangent at `u`: [`Self::frame`]'s `t` to the bit, for less.
+    pub fn tangent(&self, u: f64) -> DVec3 {
+        crate::frame::tangent_at(&self.axis, &self.framing, u)
+    }
+
     /// The frame at `u`.
     pub fn frame(&self, u: f64) -> Frame {
         let [t, n, b] = frame_r(&self.axis, &self.framing, u);

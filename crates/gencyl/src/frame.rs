@@ -526,6 +526,22 @@ pub fn frame_r<T: Real>(axis: &CubicBezier, framing: &Framing, u: T) -> [V3<T>; 
     }
 }
 
+/// The tangent `t = a'/|a'|` of [`frame_r`]'s frame at `u`, to the bit, without its `n` and `b`
+/// (what a renderer's hair shading needs): Frenet's taken at the same shifted `u` beside an
+/// inflection, a fixed frame's own `t`.
+pub fn tangent_at(axis: &CubicBezier, framing: &Framing, u: f64) -> DVec3 {
+    let unit = |d1: V3<f64>| d1.divided(d1.norm2().sqrt()).value();
+    match framing {
+        Framing::Fixed(f) => f.t,
+        Framing::Projected(_) => unit(axis.d1_r(u).scale(axis.speed_scale())),
+        Framing::Frenet => {
+            let u = u + frenet_shift(axis, u);
+            let [k1, _] = axis.derivative_scales();
+            unit(axis.d1_r(u).scale(k1))
+        }
+    }
+}
+
 /// The Frenet frame from `a'` and `a''` (any positive multiples of them): `t = a'/|a'|`,
 /// `b = (a' x a'')/|a' x a''|`, `n = b x t`.
 #[inline(always)]
@@ -1112,10 +1128,12 @@ mod tests {
         CubicBezier::new(p)
     }
 
-    /// The frame from given `a'` and `a''` ([`frame_with`], the hit finish's) is [`frame_r`]'s to
-    /// the bit, for every framing: on a helix, on a near-inflection, on an exact inflection
-    /// (where the Frenet frame is taken from beside `u`), at 1e4 and at 1e-6 of the size, and
-    /// at 1e-150 and 1e150 (where unscaled products would under- and overflow).
+    /// The frame from given `a'` and `a''` ([`frame_with`], the hit finish's) and the tangent
+    /// alone ([`tangent_at`], the renderer's) are [`frame_r`]'s to the bit, for every framing:
+    /// on a helix, on a near-inflection, on an exact inflection (where the Frenet frame is
+    /// taken from beside `u`), at 1e4 and at 1e-6 of the size, and at 1e-150, 1e150, 1e-170 and
+    /// 1e170 (where unscaled products, and at the last two unscaled squared lengths of `a'`,
+    /// would under- and overflow).
     #[test]
     fn frame_from_given_derivatives_is_the_same_frame() {
         let inflection = s_curve();
@@ -1133,6 +1151,8 @@ mod tests {
             (inflection, 1e-6, 1e4),
             (helix_like(), 1e-150, 0.0),
             (near_inflection(), 1e150, 0.0),
+            (helix_like(), 1e-170, 0.0),
+            (near_inflection(), 1e170, 0.0),
         ] {
             let c = CubicBezier::new(c.points.map(|p| p * scale + DVec3::splat(offset)));
             for framing in [Framing::Frenet, Framing::Projected(DVec3::Z), fixed.clone()] {
@@ -1143,7 +1163,8 @@ mod tests {
                         usize::from(framing == Framing::Frenet && frenet_shift(&c, u) != 0.0);
                     let [t, n, b] = frame_r(&c, &framing, u).map(|v| v.value());
                     let f = frame_with(&c, &framing, u, c.d1(u), c.d2(u));
-                    for (x, y) in [(t, f.t), (n, f.n), (b, f.b)] {
+                    let alone = tangent_at(&c, &framing, u);
+                    for (x, y) in [(t, f.t), (n, f.n), (b, f.b), (t, alone)] {
                         assert_eq!(
                             x.to_array().map(f64::to_bits),
                             y.to_array().map(f64::to_bits)

@@ -206,7 +206,8 @@ fn radiance(
             beta *= (-sigma_a * h.t).exp();
         }
         let wo = -ray.dir;
-        let bsdf = Bsdf::new(material, &world.shading_point(&h), wo);
+        let at = world.shading_point_for(&h, material.uses_section());
+        let bsdf = Bsdf::new(material, &at, wo);
         if !bsdf.is_delta() && n_lights > 0 {
             l += beta * next_event(world, &h, &bsdf, wo, pick, rng, buf);
         }

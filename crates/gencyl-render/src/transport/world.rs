@@ -334,6 +334,13 @@ impl World {
 
     /// The shading geometry at a hit: the normal, and for fibers the tangent and the section.
     pub fn shading_point(&self, h: &WorldHit) -> ShadingPoint {
+        self.shading_point_for(h, true)
+    }
+
+    /// [`Self::shading_point`], with a fiber's section only `with_section` (the frame's `n` and
+    /// `b` and the sweep's turn are then not computed: most materials need the tangent alone,
+    /// [`Material::uses_section`]).
+    pub fn shading_point_for(&self, h: &WorldHit, with_section: bool) -> ShadingPoint {
         let Surface::Fiber { object, u, .. } = h.surface else {
             return ShadingPoint {
                 normal: h.normal,
@@ -342,6 +349,13 @@ impl World {
             };
         };
         let c = &*self.scene.cylinder(object);
+        if !with_section {
+            return ShadingPoint {
+                normal: h.normal,
+                tangent: Some(c.tangent(u)),
+                section: None,
+            };
+        }
         let frame = c.frame(u);
         ShadingPoint {
             normal: h.normal,

@@ -62,6 +62,19 @@ pub enum Material {
 }
 
 impl Material {
+    /// Whether its BSDF reads the fiber's section ([`ShadingPoint::section`]): only the
+    /// exact-section hair model with its tables does ([`Bsdf::new`]); the rest need the
+    /// tangent and the normal alone.
+    pub fn uses_section(&self) -> bool {
+        matches!(
+            self,
+            Material::ExactHair {
+                tables: Some(_),
+                ..
+            }
+        )
+    }
+
     /// Checks the parameters; the message names the parameter and its value.
     pub fn validate(&self) -> Result<(), String> {
         let colour = |name: &str, c: DVec3, max: f64| {
