@@ -44,7 +44,7 @@ pub use cylinder::{
 };
 pub use frame::{Frame, FrameAt, Framing};
 pub use intersect::Method;
-pub use packed::{PackedCylinders, Record, StrandControls};
+pub use packed::{PackedCylinders, Record, StrandControls, spline_bezier_near};
 pub use section::{BezierLoop, CrossSection, Section, UnitCircle};
 pub use strand::{Strand, StrandFraming, StrandSegment, Taper, along_strand, spline_segment};
 pub use sweep::{HairSweep, SweepRule};

@@ -34,6 +34,7 @@
 //! whole.
 
 use std::borrow::Cow;
+use std::ops::{Add, Mul};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 #[cfg(test)]
@@ -689,10 +690,37 @@ impl PackedCylinders {
     /// If `i >= self.len()`.
     #[inline]
     pub fn axis_and_reach(&self, i: usize) -> ([DVec3; 4], [f64; 2]) {
+        self.with_axis_controls(i, |&points, spline, reach| {
+            let points = if spline {
+                spline_points_near(points)
+            } else {
+                points
+            };
+            (points, reach)
+        })
+    }
+
+    /// `f` of [`Self::axis_and_reach`] before a strand's segment's points are made: the four
+    /// stored points in world coordinates, lent where they lie in the store (nearly always: a
+    /// strand's segment's four controls while the strand lasts), not copied; whether they are
+    /// a strand's B-spline control points (then the axis's Bezier points are
+    /// [`spline_points_near`] of them, which [`spline_bezier_near`] makes of any linear image of
+    /// them); and [`GeneralizedCylinder::reach_ends`]. For a cull that maps the points linearly
+    /// first (a projection) and converts fewer coordinates.
+    ///
+    /// # Panics
+    ///
+    /// If `i >= self.len()`.
+    #[inline]
+    pub fn with_axis_controls<R>(
+        &self,
+        i: usize,
+        f: impl FnOnce(&[DVec3; 4], bool, [f64; 2]) -> R,
+    ) -> R {
         let r = &self.records[i];
         if r.flags & Packed::WHOLE != 0 {
             let c = &self.whole[r.radii as usize];
-            return (c.axis().points, c.reach_ends());
+            return f(&c.axis().points, false, c.reach_ends());
         }
         // `reach_ends` of the rebuilt cylinder.
         let bound = if r.flags & Packed::LOOP != 0 {
@@ -701,7 +729,13 @@ impl PackedCylinders {
             UnitCircle.bounding_radius()
         };
         let reach = self.sweep(i, r).scale_bound().map(|l| l * bound);
-        (self.points_of(i, spline_points_near), reach)
+        let spline = r.flags & Packed::SPLINE != 0;
+        if spline && (r.flags >> Packed::AVAIL_SHIFT & Packed::AVAIL_MASK) == 4 {
+            // As `points_of` reads them.
+            let w: &[DVec3; 4] = self.points[i..i + 4].try_into().expect("four points");
+            return f(w, true, reach);
+        }
+        f(&self.points_of(i, |w| w), spline, reach)
     }
 
     /// How many cylinders.
@@ -793,14 +827,28 @@ impl Radii {
 /// `eps` of `N / k` (relative) and `fl(N / k)` within `eps / 2`, so each coordinate is within
 /// `1.5 eps` of [`spline_segment`]'s.
 #[inline]
-fn spline_points_near([a, b, c, d]: [DVec3; 4]) -> [DVec3; 4] {
+fn spline_points_near(w: [DVec3; 4]) -> [DVec3; 4] {
+    spline_bezier_near(w)
+}
+
+/// [`spline_points_near`] of any linear image of the control points (`T`: points in the
+/// plane, numbers, ...): the Bezier points of the B-spline segment of controls `[a, b, c, d]`,
+/// `(a + 4 b + c) / 6`, `(2 b + c) / 3`, `(b + 2 c) / 3`, `(b + 4 c + d) / 6`, with the
+/// divisions taken as products with the rounded reciprocals. Each is a convex combination
+/// of the controls (non-negative weights of sum `1`), so it commutes with any affine map (a
+/// projection, a shift) in exact arithmetic, and in floating point lies within a few `eps`
+/// of the largest control's magnitude of the exact value.
+#[inline]
+pub fn spline_bezier_near<T: Copy + Add<Output = T> + Mul<f64, Output = T>>(
+    [a, b, c, d]: [T; 4],
+) -> [T; 4] {
     const SIXTH: f64 = 1.0 / 6.0;
     const THIRD: f64 = 1.0 / 3.0;
     [
-        (a + 4.0 * b + c) * SIXTH,
-        (2.0 * b + c) * THIRD,
-        (b + 2.0 * c) * THIRD,
-        (b + 4.0 * c + d) * SIXTH,
+        (a + b * 4.0 + c) * SIXTH,
+        (b * 2.0 + c) * THIRD,
+        (b + c * 2.0) * THIRD,
+        (b + c * 4.0 + d) * SIXTH,
     ]
 }
 

@@ -17,7 +17,7 @@
 
 use std::ops::{Add, Mul};
 
-use gencyl::{Aabb, GeneralizedCylinder, Ray};
+use gencyl::{Aabb, GeneralizedCylinder, Ray, spline_bezier_near};
 use glam::{DVec2, DVec3};
 
 /// How many times the hull test halves the curve at most (pieces reach [`MAX_PIECE_LEVEL`]).
@@ -101,7 +101,20 @@ pub fn reach_on(c: &GeneralizedCylinder, piece: Piece) -> f64 {
 #[inline]
 fn piece_reach([r0, r1]: [f64; 2], piece: Piece) -> f64 {
     let (u0, u1) = piece.range();
-    (r0 + (r1 - r0) * u0).max(r0 + (r1 - r0) * u1)
+    max(r0 + (r1 - r0) * u0, r0 + (r1 - r0) * u1)
+}
+
+/// The larger of `a` and `b`, neither NaN: a single comparison, where [`f64::max`] also sorts
+/// out NaNs (the same value otherwise, but for which of `0` and `-0`).
+#[inline]
+fn max(a: f64, b: f64) -> f64 {
+    if a > b { a } else { b }
+}
+
+/// The smaller of `a` and `b`, neither NaN (as [`max`]).
+#[inline]
+fn min(a: f64, b: f64) -> f64 {
+    if a < b { a } else { b }
 }
 
 /// How finely to cut a cylinder into BVH pieces, as a level `l` (`2^l` pieces), at most
@@ -262,6 +275,9 @@ impl PieceBounds {
 #[derive(Clone, Copy, Debug)]
 pub struct RaySpace {
     origin: DVec3,
+    /// `|o|` in its largest coordinate: a part of [`Self::may_hit_axis_piece`]'s rounding
+    /// margin, the same for every piece.
+    origin_far: f64,
     e0: DVec3,
     e1: DVec3,
     e2: DVec3,
@@ -277,6 +293,7 @@ impl RaySpace {
         let (e1, e2) = e0.any_orthonormal_pair();
         RaySpace {
             origin: ray.origin,
+            origin_far: ray.origin.abs().max_element(),
             e0,
             e1,
             e2,
@@ -314,22 +331,64 @@ impl RaySpace {
         tmin: f64,
         tmax: f64,
     ) -> bool {
+        self.may_hit_axis_controls(p, false, reach_ends, piece, tmin, tmax)
+    }
+
+    /// [`Self::may_hit_axis_piece`] from [`gencyl::PackedCylinders::with_axis_controls`]:
+    /// the axis's Bezier points `p`, or where `spline`, a strand's B-spline control points,
+    /// whose segment's Bezier points are [`gencyl::spline_bezier_near`] of them.
+    ///
+    /// The points are projected first and converted after (the conversion's weights are
+    /// non-negative of sum `1`, so it commutes with the projection, an affine map, in exact
+    /// arithmetic), in the plane across the ray and along it only where that does not settle
+    /// it. The margins hold for either order: the control points `w` lie within `size` (their
+    /// largest coordinate of `w - o`) of the origin, and so do the Bezier points, their convex
+    /// combinations; each projected coordinate (three products and sums of a coordinate
+    /// within `size` with a unit vector's) is within `4 eps sqrt(3) size` of the exact
+    /// projection of the rounded difference, itself within `eps |w - o|`, and the conversion
+    /// (non-negative weights of sum `1`) adds `4 eps` of the largest projected control: in all
+    /// a few dozen `eps size`, far inside the `1e-9 size` of the margin. The Bezier points of
+    /// the rebuilt cylinder are within a few `eps` of the coordinates (of `|w|` at most, `w`
+    /// being within `|o| + size` of `0`) of the exact conversion of `w`: inside the `8 eps
+    /// far` of the margin, with `far = |o| + size`.
+    #[inline]
+    pub fn may_hit_axis_controls(
+        &self,
+        p: &[DVec3; 4],
+        spline: bool,
+        reach_ends: [f64; 2],
+        piece: Piece,
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
         let rel = p.map(|x| x - self.origin);
         // Rounding of the projection is about eps |p - o| per coordinate: widen by far more.
         // The points themselves may be off the axis by a few units in their last place (world
         // points of a packed cylinder): widen by 8 eps |p| for that, with `|p| <= |o| + |p - o|`
         // (in the largest coordinate).
-        let size = rel.iter().fold(0.0f64, |m, x| m.max(x.abs().max_element()));
-        let far = self.origin.abs().max_element() + size;
+        let size = (rel[0].abs().max(rel[1].abs()))
+            .max(rel[2].abs().max(rel[3].abs()))
+            .max_element();
+        let far = self.origin_far + size;
         let reach =
             piece_reach(reach_ends, piece) * (1.0 + 1e-9) + 1e-9 * size + 8.0 * f64::EPSILON * far;
         // Across the ray first: most pieces that get here pass beside it, and need no depths.
-        let across = piece.sub_bezier(rel.map(|x| DVec2::new(x.dot(self.e1), x.dot(self.e2))));
+        let across = rel.map(|x| DVec2::new(x.dot(self.e1), x.dot(self.e2)));
+        let across = piece.sub_bezier(if spline {
+            spline_bezier_near(across)
+        } else {
+            across
+        });
         let first = within(&across, reach);
         if first == Reach::Beyond {
             return false;
         }
-        let depth = piece.sub_bezier(rel.map(|x| x.dot(self.e0)));
+        let depth = rel.map(|x| x.dot(self.e0));
+        let depth = piece.sub_bezier(if spline {
+            spline_bezier_near(depth)
+        } else {
+            depth
+        });
         let q = std::array::from_fn(|i| across[i].extend(depth[i]));
         // A hit x within R of a(u) has z(x) within R of z(a(u)), and t = z(x) / |d|.
         let (zmin, zmax) = (tmin * self.len, tmax * self.len);
@@ -392,7 +451,7 @@ enum Reach {
 }
 
 /// How near the origin the convex hull of `q`, and the curve, come: [`Reach`].
-#[inline]
+#[inline(always)]
 fn within(q: &[DVec2; 4], reach: f64) -> Reach {
     let r2 = reach * reach;
     // Quick accept: an end (a point of the curve) within reach.
@@ -413,10 +472,11 @@ fn within(q: &[DVec2; 4], reach: f64) -> Reach {
         let (d1, d2) = (q[1] - q[0], q[2] - q[0]);
         let (c0, c1, c2) = (e.perp_dot(q[0]), d1.perp_dot(e), d2.perp_dot(e));
         let (a0, a1, a2) = (-q[0].dot(e), d1.dot(e), d2.dot(e));
-        if c0 > c1.max(c2).max(0.0) + band
-            || c0 < c1.min(c2).min(0.0) - band
-            || a0 > a1.max(a2).max(len2) + band
-            || a0 < a1.min(a2).min(0.0) - band
+        // (The points are finite: no NaNs.)
+        if c0 > max(max(c1, c2), 0.0) + band
+            || c0 < min(min(c1, c2), 0.0) - band
+            || a0 > max(max(a1, a2), len2) + band
+            || a0 < min(min(a1, a2), 0.0) - band
         {
             return Reach::Beyond;
         }
@@ -683,6 +743,51 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A strand's segment handed over as its B-spline control points (converted after the
+    /// projection) never makes the cull reject a ray through the segment's surface, near the
+    /// origin or far from it.
+    #[test]
+    fn spline_controls_never_reject_a_ray_through_the_surface() {
+        let mut rng = Rng::from_seed(29);
+        let mut built = 0;
+        for i in 0..300 {
+            let at = DVec3::splat([0.0, 1e4, -3.3e5][i % 3]);
+            // Hair-like: controls along a direction, bent a little.
+            let (dir, len) = (rng.unit_vector(), rng.range(0.1, 2.0));
+            let w: [DVec3; 4] = std::array::from_fn(|k| {
+                at + dir * (k as f64 * len) + rng.unit_vector() * (0.2 * len)
+            });
+            let r = len * 10f64.powf(rng.range(-4.0, -2.0));
+            let Ok(c) = gencyl::FiberSpec::round(gencyl::spline_segment(w).points, r).build()
+            else {
+                continue;
+            };
+            built += 1;
+            for l in 0..=MAX_LEVEL {
+                for piece in Piece::level_pieces(l) {
+                    let (u0, u1) = piece.range();
+                    let p =
+                        c.surface_point(rng.range(u0, u1), rng.range(0.0, std::f64::consts::TAU));
+                    let d = rng.unit_vector() * rng.range(0.1, 10.0);
+                    let t = rng.range(-3.0, 3.0);
+                    let ray = Ray::new(p - t * d, d);
+                    assert!(
+                        RaySpace::new(&ray).may_hit_axis_controls(
+                            &w,
+                            true,
+                            c.reach_ends(),
+                            piece,
+                            t - 1e-9,
+                            t + 1e-9
+                        ),
+                        "rejected {ray:?} at t = {t} through {p} of {piece:?} of {w:?}"
+                    );
+                }
+            }
+        }
+        assert!(built > 200, "{built} segments built");
     }
 
     /// [`within`] says the curve comes within reach only where it does, and the hull stays

@@ -278,10 +278,14 @@ impl Scene {
             if leaving != Some(i) {
                 tally(&mut culls);
                 // The cull reads the stored axis; the cylinder is rebuilt only past it.
-                let (axis, reach) = self.cylinders.axis_and_reach(i as usize);
                 let space = space.get_or_insert_with(|| RaySpace::new(ray));
                 let piece = Piece(key & ((1 << PIECE_BITS) - 1));
-                if !space.may_hit_axis_piece(&axis, reach, piece, tmin, tmax) {
+                let may_hit =
+                    self.cylinders
+                        .with_axis_controls(i as usize, |axis, spline, reach| {
+                            space.may_hit_axis_controls(axis, spline, reach, piece, tmin, tmax)
+                        });
+                if !may_hit {
                     tally(&mut cleared);
                     return tmax;
                 }
