@@ -104,6 +104,14 @@ impl HairSweep {
         }
     }
 
+    /// `R(theta) diag(A(u), B(u)) p` with `(s, c)` the sine and cosine of `theta`: the rule's
+    /// map once its rotation is known ([`SweepRule::apply`] and its tangent form share it).
+    #[inline]
+    fn turned_stretch<T: Real>(&self, (s, c): (T, T), u: T, p: V2<T>) -> V2<T> {
+        let (x, y) = (p.x * self.major_at(u), p.y * self.minor_at(u));
+        V2::new(c * x - s * y, s * x + c * y)
+    }
+
     /// `x / k(u)` for a radius `k = [k0, k1]` linear in `u`; by the constant where `k0 = k1`.
     #[inline]
     fn over<T: Real>(k: [f64; 2], u: T, x: T) -> T {
@@ -118,9 +126,7 @@ impl HairSweep {
 impl SweepRule for HairSweep {
     #[inline]
     fn apply<T: Real>(&self, u: T, p: V2<T>) -> V2<T> {
-        let (s, c) = self.angle(u).sin_cos();
-        let (x, y) = (p.x * self.major_at(u), p.y * self.minor_at(u));
-        V2::new(c * x - s * y, s * x + c * y)
+        self.turned_stretch(self.angle(u).sin_cos(), u, p)
     }
 
     #[inline]
@@ -133,18 +139,12 @@ impl SweepRule for HairSweep {
     /// rotation (the second's are constants: its `u` is).
     fn apply_with_tangent(&self, u: f64, p: DVec2, dp: DVec2) -> (V2<Dual<f64>>, V2<Dual<f64>>) {
         let (s, c) = self.angle(Dual::var(u)).sin_cos();
-        let rotate = |(s, c): (Dual<f64>, Dual<f64>), x: Dual<f64>, y: Dual<f64>| {
-            V2::new(c * x - s * y, s * x + c * y)
-        };
-        let stretch =
-            |u: Dual<f64>, p: V2<Dual<f64>>| (p.x * self.major_at(u), p.y * self.minor_at(u));
-        let (x, y) = stretch(Dual::var(u), V2::cst(p));
-        let along_u = rotate((s, c), x, y);
-        let (x, y) = stretch(
+        let along_u = self.turned_stretch((s, c), Dual::var(u), V2::cst(p));
+        let along_v = self.turned_stretch(
+            (Dual::cst(s.v), Dual::cst(c.v)),
             Dual::cst(u),
             V2::new(Dual { v: p.x, d: dp.x }, Dual { v: p.y, d: dp.y }),
         );
-        let along_v = rotate((Dual::cst(s.v), Dual::cst(c.v)), x, y);
         (along_u, along_v)
     }
 
